@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs everything vantage needs from Debian's archive (and the npm registry for test tooling).
+# Idempotent: re-running installs nothing new. Needs root or sudo.
+set -euo pipefail
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install-deps: run as root or install sudo" >&2; exit 1; }
+  SUDO="sudo"
+fi
+
+PACKAGES=(
+  # build
+  build-essential cmake ninja-build pkg-config git
+  # core
+  libeigen3-dev
+  # tests and benchmarks
+  catch2 libbenchmark-dev
+  # sim_hal: ray casting, mesh loading, the default scene, scene files
+  libembree-dev libassimp-dev glmark2-data libtomlplusplus-dev
+  # targets: command line, images, plots
+  libcli11-dev libpng-dev gnuplot-nox
+  # hal: capture and calibration
+  libcamera-dev libv4l-dev libyaml-cpp-dev libssl-dev
+  # aarch64 cross-build and its test runner
+  g++-aarch64-linux-gnu qemu-user
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+  echo "install-deps: all Debian packages present"
+fi
+
+# The machine image ships Node.js with npm (NodeSource build); Debian's npm conflicts with it, so only
+# fall back to Debian's packages where no npm is present at all.
+if ! command -v npm >/dev/null; then
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
+fi
