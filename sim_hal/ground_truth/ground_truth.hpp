@@ -1,0 +1,87 @@
+#pragma once
+// Ground truth for EVALUATION ONLY (never given to the planner). Definitions (sim_hal/README.md):
+//  (a) samples: sample_count area-weighted surface points (sample_surface, fixed seed);
+//  (b) visible samples: seen from at least one free grid cell's viewpoint (cell centre at the grid
+//      elevation, looking at the grid centre, up = +z): in front of the camera, projecting inside the
+//      image, front-facing (normal . (camera - X) > 0) and unoccluded (no hit between camera and X);
+//      visible area = total area * visible samples / samples;
+//  (c) coverage(d, sigma_target) = fraction of visible samples within distance d of the position of at
+//      least one primitive with primitive_sigma < sigma_target;
+//  (d) accuracy: each primitive's distance to the true surface (closest point, Embree point query),
+//      RMS and 95th percentile (nearest-rank) over alive primitives;
+//  (e) average sigma: mean of primitive_sigma over alive primitives.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+#include "core/model/primitive.hpp"
+#include "core/model/primitive_pool.hpp"
+#include "sim_hal/scene/embree_scene.hpp"
+#include "sim_hal/scene/surface_sampler.hpp"
+#include "sim_hal/world/occupancy.hpp"
+
+namespace vantage::sim {
+
+// sigma of a primitive: sqrt(trace(Sigma_world) / 3), the RMS per-axis standard deviation (units).
+double primitive_sigma(const Primitive& primitive);
+
+// The viewpoint the ground truth (and the planner's grid) uses for a cell: cell centre, looking at the
+// grid centre at the grid elevation, image up toward +z.
+Viewpoint grid_cell_viewpoint(const GridGeometry& grid, const GridCell& cell);
+
+struct GroundTruthConfig {
+  std::size_t sample_count = 50000;
+  std::uint32_t seed = 7;
+  double coverage_distance = 0.5;   // d, scene units
+  double sigma_target = 0.008;      // the paper's precision target, units
+  int threads = 2;
+};
+
+struct Evaluation {
+  std::size_t primitive_count = 0;
+  double coverage = 0.0;            // (c), in [0, 1]
+  double rms_error = 0.0;           // (d), units
+  double p95_error = 0.0;           // (d), units
+  double max_error = 0.0;           // (d), units
+  double average_sigma = 0.0;       // (e), units
+};
+
+class GroundTruth {
+ public:
+  // Samples the surface and computes the visible set (the slow part, once per scene). Throws SimError
+  // for a bad configuration.
+  GroundTruth(const EmbreeScene& scene, const OccupancyGrid& occupancy, const PinholeIntrinsics& intrinsics,
+              const GroundTruthConfig& config);
+
+  const std::vector<SurfaceSample>& samples() const { return samples_; }
+  // visible()[i] != 0 when samples()[i] is visible from at least one free cell.
+  const std::vector<std::uint8_t>& visible() const { return visible_; }
+  std::size_t visible_count() const { return visible_count_; }
+  double surface_area() const { return surface_area_; }
+  double visible_area() const;
+
+  // True when the point with outward normal is seen from view: in front, inside the image,
+  // front-facing and unoccluded.
+  static bool visible_from(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, const Viewpoint& view,
+                           const Eigen::Vector3d& point, const Eigen::Vector3d& normal);
+
+  double coverage(const PrimitivePoolView& pool, double distance, double sigma_target) const;
+  // Fills distances (one per alive primitive, in index order) when not null.
+  void accuracy(const PrimitivePoolView& pool, double* rms, double* p95, double* max,
+                std::vector<double>* distances = nullptr) const;
+  static double average_sigma(const PrimitivePoolView& pool);
+  // All of the above with the configured d and sigma target.
+  Evaluation evaluate(const PrimitivePoolView& pool) const;
+
+ private:
+  const EmbreeScene& scene_;
+  GroundTruthConfig config_;
+  std::vector<SurfaceSample> samples_;
+  std::vector<std::uint8_t> visible_;
+  std::size_t visible_count_ = 0;
+  double surface_area_ = 0.0;
+};
+
+}  // namespace vantage::sim
