@@ -16,6 +16,8 @@ const char* to_string(Status status) {
     case Status::kGatedOutlier: return "measurement rejected by the Mahalanobis gate";
     case Status::kNoPath: return "no path";
     case Status::kNoFreeCell: return "no free cell";
+    case Status::kUnusableImage: return "unusable image (constant, all black or saturated)";
+    case Status::kNotInitialized: return "not initialized";
   }
   return "unknown status";
 }

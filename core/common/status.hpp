@@ -17,6 +17,8 @@ enum class [[nodiscard]] Status : std::uint8_t {
   kGatedOutlier,        // a measurement rejected by the Mahalanobis gate
   kNoPath,              // no path between two grid cells
   kNoFreeCell,          // no free cell to plan for
+  kUnusableImage,       // a well-formed image without usable content: constant, all black or saturated
+  kNotInitialized,      // an update before the initialization that it builds on
 };
 
 const char* to_string(Status status);
