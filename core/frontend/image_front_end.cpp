@@ -1,0 +1,488 @@
+#include "core/frontend/image_front_end.hpp"
+
+#include <cmath>
+
+#include "core/frontend/patch_warp.hpp"
+#include "core/frontend/surface_fit.hpp"
+#include "core/frontend/triangulation.hpp"
+#include "core/geometry/projection.hpp"
+
+namespace vantage {
+
+namespace {
+
+constexpr std::uint8_t kCellUpdated = 1u << 0;
+constexpr std::uint8_t kCellSpawned = 1u << 1;
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+UpdateReport& report_or(UpdateReport* report, UpdateReport& fallback) {
+  UpdateReport& out = report != nullptr ? *report : fallback;
+  out = UpdateReport{};
+  return out;
+}
+
+bool finite_positive(double value) { return std::isfinite(value) && value > 0.0; }
+
+double focal_mean(const PinholeIntrinsics& k) { return 0.5 * (k.fx_px + k.fy_px); }
+
+// Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
+double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
+
+}  // namespace
+
+Status FrontEndConfig::validate() const {
+  const double values[] = {min_texture_stddev_gray, ncc_min, uniqueness_ratio, depth_min, depth_max,
+                           max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
+                           max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
+                           merge_plane_sigmas, merge_max_radius_px};
+  for (double v : values) {
+    if (!std::isfinite(v)) return Status::kNonFiniteInput;
+  }
+  const Status ekf_status = ekf.validate();
+  if (!ok(ekf_status)) return ekf_status;
+  if (seed_stride_px < kFrontEndMinSeedStride || seed_stride_px > 64) return Status::kInvalidArgument;
+  if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f)) return Status::kInvalidArgument;
+  if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
+  if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
+    return Status::kInvalidArgument;
+  }
+  if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
+  if (!finite_positive(max_initial_sigma) || !(warp_min_deviation >= 0.0)) return Status::kInvalidArgument;
+  if (!(min_facing_cos > -1.0 && min_facing_cos < 1.0)) return Status::kInvalidArgument;
+  if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
+    return Status::kInvalidArgument;
+  }
+  if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
+      !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
+    return Status::kInvalidArgument;
+  }
+  return Status::kOk;
+}
+
+Status ImageFrontEnd::configure(const PinholeIntrinsics& intrinsics, const FrontEndConfig& config) {
+  configured_ = false;
+  initialized_ = false;
+  const Status k_status = intrinsics.validate();
+  if (!ok(k_status)) return k_status;
+  if (intrinsics.width_px > kFrontEndMaxWidth || intrinsics.height_px > kFrontEndMaxHeight ||
+      intrinsics.width_px < kPatchSize + 2 || intrinsics.height_px < kPatchSize + 2) {
+    return Status::kInvalidArgument;
+  }
+  const Status c_status = config.validate();
+  if (!ok(c_status)) return c_status;
+  intrinsics_ = intrinsics;
+  config_ = config;
+  stats_ = FrontEndStats{};
+  next_view_index_ = 0;
+  cells_x_ = intrinsics.width_px / config.seed_stride_px;
+  cells_y_ = intrinsics.height_px / config.seed_stride_px;
+  configured_ = true;
+  return Status::kOk;
+}
+
+Status ImageFrontEnd::view_pose(std::uint32_t view_index, Viewpoint* pose) const {
+  if (view_index >= next_view_index_ || next_view_index_ - view_index > kFrontEndMaxViews) return Status::kNotFound;
+  *pose = view_poses_[view_index % kFrontEndMaxViews];
+  return Status::kOk;
+}
+
+Status ImageFrontEnd::check_frame(const GrayImageView& image, const Viewpoint& view) {
+  if (!ok(image.validate()) || image.width_px != intrinsics_.width_px || image.height_px != intrinsics_.height_px) {
+    ++stats_.rejected_invalid_image;
+    return Status::kInvalidImage;
+  }
+  const Status pose_status = view.validate();
+  if (!ok(pose_status)) {
+    ++stats_.rejected_bad_pose;
+    return pose_status;
+  }
+  // Content: a sparse sample is enough to tell a constant, black or saturated frame.
+  double sum = 0.0;
+  double sum_sq = 0.0;
+  std::uint32_t clipped = 0;
+  std::uint32_t count = 0;
+  for (std::int32_t y = 0; y < image.height_px; y += 4) {
+    for (std::int32_t x = 0; x < image.width_px; x += 4) {
+      const std::uint8_t value = image.at(x, y);
+      sum += value;
+      sum_sq += static_cast<double>(value) * value;
+      clipped += (value == 0 || value == 255) ? 1u : 0u;
+      ++count;
+    }
+  }
+  const double mean = sum / count;
+  const double variance = sum_sq / count - mean * mean;
+  if (!(variance >= static_cast<double>(config_.min_image_stddev_gray) * config_.min_image_stddev_gray) ||
+      static_cast<double>(clipped) > static_cast<double>(config_.max_clipped_fraction) * count) {
+    ++stats_.rejected_unusable_image;
+    return Status::kUnusableImage;
+  }
+  return Status::kOk;
+}
+
+void ImageFrontEnd::reset_cells() {
+  const std::size_t cells = static_cast<std::size_t>(cells_x_) * cells_y_;
+  for (std::size_t i = 0; i < cells; ++i) {
+    cell_primitive_[i] = kInvalidPrimitive;
+    cell_depth_[i] = 0.0f;
+    cell_covered_[i] = 0;
+    cell_state_[i] = 0;
+  }
+}
+
+std::size_t ImageFrontEnd::cell_of(const Eigen::Vector2d& uv_px) const {
+  std::int32_t cx = static_cast<std::int32_t>(std::floor((uv_px.x() + 0.5) / config_.seed_stride_px));
+  std::int32_t cy = static_cast<std::int32_t>(std::floor((uv_px.y() + 0.5) / config_.seed_stride_px));
+  cx = cx < 0 ? 0 : (cx >= cells_x_ ? cells_x_ - 1 : cx);
+  cy = cy < 0 ? 0 : (cy >= cells_y_ ? cells_y_ - 1 : cy);
+  return static_cast<std::size_t>(cy) * cells_x_ + cx;
+}
+
+void ImageFrontEnd::remember(const GrayImageView& image, const Viewpoint& view) {
+  // resize cannot fail: configure() bounded the size by the buffer's capacity.
+  if (!ok(previous_image_.resize(image.width_px, image.height_px))) return;
+  const MutableGrayImageView copy = previous_image_.view();
+  for (std::int32_t y = 0; y < image.height_px; ++y) {
+    const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(y) * image.stride_bytes;
+    std::uint8_t* dst = copy.pixels + static_cast<std::ptrdiff_t>(y) * copy.stride_bytes;
+    for (std::int32_t x = 0; x < image.width_px; ++x) dst[x] = src[x];
+  }
+  previous_view_ = view;
+  view_poses_[next_view_index_ % kFrontEndMaxViews] = view;
+  ++next_view_index_;
+}
+
+Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& first_view, const GrayImageView& second,
+                                 const Viewpoint& second_view, PrimitivePoolView& pool, UpdateReport* report) {
+  UpdateReport fallback;
+  UpdateReport& out = report_or(report, fallback);
+  if (!configured_) {
+    ++stats_.rejected_not_initialized;
+    return Status::kNotInitialized;
+  }
+  Status status = check_frame(first, first_view);
+  if (!ok(status)) return status;
+  status = check_frame(second, second_view);
+  if (!ok(status)) return status;
+  if ((first_view.position_world - second_view.position_world).norm() <= 1e-9) {
+    ++stats_.rejected_bad_pose;  // no baseline: nothing to triangulate
+    return Status::kInvalidArgument;
+  }
+  initialized_ = false;
+  next_view_index_ = 0;
+  const std::uint32_t first_index = next_view_index_;
+  view_poses_[0] = first_view;
+  next_view_index_ = 1;
+  reset_cells();
+  spawn(first, first_view, first_index, second, second_view, pool, out);
+  remember(second, second_view);
+  initialized_ = true;
+  ++stats_.frames_accepted;
+  if (out.spawned > 0) pool.mark_modified();
+  return Status::kOk;
+}
+
+Status ImageFrontEnd::update(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,
+                             UpdateReport* report) {
+  UpdateReport fallback;
+  UpdateReport& out = report_or(report, fallback);
+  if (!configured_ || !initialized_) {
+    ++stats_.rejected_not_initialized;
+    return Status::kNotInitialized;
+  }
+  const Status status = check_frame(image, view);
+  if (!ok(status)) return status;
+  reset_cells();
+  track(image, view, pool, out);
+  refit_normals(view, pool);
+  if (config_.merge_enabled) merge_neighbours(view, pool, out);
+  // A new view from (almost) the previous position has no baseline to triangulate new surface from.
+  if ((view.position_world - previous_view_.position_world).norm() > 1e-6 * (1.0 + view.position_world.norm())) {
+    const std::uint32_t index = next_view_index_;
+    spawn(image, view, index, previous_image_.view().as_const(), previous_view_, pool, out);
+  }
+  remember(image, view);
+  ++stats_.frames_accepted;
+  if (out.updated > 0 || out.spawned > 0 || out.merged > 0) pool.mark_modified();
+  return Status::kOk;
+}
+
+void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,
+                          UpdateReport& report) {
+  const double focal = focal_mean(intrinsics_);
+  const double stride = config_.seed_stride_px;
+  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio};
+  const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
+  const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
+  for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
+    if (!pool.is_alive(i)) continue;
+    Primitive& p = pool[i];
+    Eigen::Vector2d predicted;
+    Eigen::Matrix<double, 2, 3> H;
+    if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, &predicted, &H))) continue;
+    if (!in_image(predicted, intrinsics_, kPatchRadius + 1.0)) continue;
+    const Eigen::Vector3d to_camera = view.position_world - p.X_world;
+    const double distance = to_camera.norm();
+    const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
+    if (!(facing > config_.min_facing_cos)) continue;
+    ++report.predicted_in_view;
+
+    // Coverage: the footprint's disc in this image, and the nearest primitive per cell.
+    const double depth = (R_cam_world * (p.X_world - view.position_world)).z();
+    const double radius_px = p.radius * focal / depth;
+    const std::size_t centre_cell = cell_of(predicted);
+    if (cell_primitive_[centre_cell] == kInvalidPrimitive || depth < cell_depth_[centre_cell]) {
+      cell_primitive_[centre_cell] = i;
+      cell_depth_[centre_cell] = static_cast<float>(depth);
+    }
+    const double reach = radius_px + 0.5 * stride;
+    const std::int32_t cx0 = static_cast<std::int32_t>(std::floor((predicted.x() - reach) / stride));
+    const std::int32_t cx1 = static_cast<std::int32_t>(std::floor((predicted.x() + reach) / stride));
+    const std::int32_t cy0 = static_cast<std::int32_t>(std::floor((predicted.y() - reach) / stride));
+    const std::int32_t cy1 = static_cast<std::int32_t>(std::floor((predicted.y() + reach) / stride));
+    for (std::int32_t cy = cy0 < 0 ? 0 : cy0; cy <= cy1 && cy < cells_y_; ++cy) {
+      for (std::int32_t cx = cx0 < 0 ? 0 : cx0; cx <= cx1 && cx < cells_x_; ++cx) {
+        const Eigen::Vector2d centre((cx + 0.5) * stride - 0.5, (cy + 0.5) * stride - 0.5);
+        if ((centre - predicted).norm() <= reach) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
+      }
+    }
+
+    // The reference patch, warped by the primitive's plane when the creating view saw it differently.
+    NccTemplate tmpl;
+    Viewpoint creating;
+    Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
+    if (ok(view_pose(p.creating_view, &creating))) {
+      if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
+        ++report.failed_matches;  // seen edge-on: nothing to correlate
+        p.flags |= primitive_flags::kLostTrack;
+        continue;
+      }
+    }
+    if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
+      warp_patch_template(p.patch, A, &tmpl);
+    } else {
+      make_template(p.patch, &tmpl);
+    }
+
+    MatchOutcome outcome = MatchOutcome::kNoRoom;
+    Eigen::Vector2d observed = predicted;
+    if (tmpl.valid_count >= kPatchPixels / 2) {
+      const Eigen::Matrix2d S = H * p.Sigma_world * H.transpose() + config_.ekf.R_px2;
+      WindowQuery query;
+      query.predicted_px = predicted;
+      query.S_inv = S.inverse();
+      query.gate_chi2 = 9.0;  // the 3-sigma ellipse
+      const double half_w = std::ceil(3.0 * std::sqrt(S(0, 0)));
+      const double half_h = std::ceil(3.0 * std::sqrt(S(1, 1)));
+      const double cap = config_.max_search_half_window_px;
+      query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
+      query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
+      float best = 0.0f;
+      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best);
+    }
+    if (outcome != MatchOutcome::kMatched) {
+      ++report.failed_matches;
+      p.flags |= primitive_flags::kLostTrack;
+      continue;
+    }
+    ++report.matched;
+    const Status updated = ekf_update(p, observed, view, intrinsics_, config_.ekf, &stats_.ekf);
+    if (ok(updated)) {
+      ++report.updated;
+      p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
+      if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
+    } else if (updated == Status::kGatedOutlier) {
+      ++report.gated_outliers;
+    }
+  }
+}
+
+void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool) {
+  const double focal = focal_mean(intrinsics_);
+  for (std::int32_t cy = 0; cy < cells_y_; ++cy) {
+    for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
+      const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
+      if ((cell_state_[cell] & kCellUpdated) == 0) continue;
+      Primitive& p = pool[cell_primitive_[cell]];
+      if (p.observation_count != config_.normal_refit_observations) continue;
+      std::array<Eigen::Vector3d, 8> neighbours;
+      std::size_t count = 0;
+      for (std::int32_t dy = -1; dy <= 1; ++dy) {
+        for (std::int32_t dx = -1; dx <= 1; ++dx) {
+          const std::int32_t nx = cx + dx;
+          const std::int32_t ny = cy + dy;
+          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
+          const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
+          if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
+          neighbours[count++] = pool[j].X_world;
+        }
+      }
+      PlaneFitConfig fit;
+      fit.max_neighbour_distance = 3.0 * config_.seed_stride_px * cell_depth_[cell] / focal;
+      Eigen::Vector3f normal;
+      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), count), view.position_world, fit,
+                           &normal)) {
+        p.normal_world = normal;
+      }
+    }
+  }
+}
+
+void ImageFrontEnd::merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report) {
+  const double focal = focal_mean(intrinsics_);
+  const double cos_max_angle = std::cos(config_.merge_max_normal_angle_deg * kDegToRad);
+  auto well_estimated = [&](const Primitive& p) {
+    return p.observation_count >= config_.merge_min_observations && sigma_bound(p.Sigma_world) <= config_.merge_max_sigma;
+  };
+  for (std::int32_t cy = 0; cy < cells_y_; ++cy) {
+    for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
+      const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
+      const PrimitiveIndex a = cell_primitive_[cell];
+      if (a == kInvalidPrimitive) continue;
+      // Right and down neighbours: each adjacent pair is looked at once.
+      const std::int32_t offsets[2][2] = {{1, 0}, {0, 1}};
+      for (const auto& offset : offsets) {
+        if (!pool.is_alive(a)) break;
+        const std::int32_t nx = cx + offset[0];
+        const std::int32_t ny = cy + offset[1];
+        if (nx >= cells_x_ || ny >= cells_y_) continue;
+        const std::size_t other_cell = static_cast<std::size_t>(ny) * cells_x_ + nx;
+        const PrimitiveIndex b = cell_primitive_[other_cell];
+        if (b == kInvalidPrimitive || b == a || !pool.is_alive(b)) continue;
+        Primitive& pa = pool[a];
+        Primitive& pb = pool[b];
+        if (!well_estimated(pa) || !well_estimated(pb)) continue;
+        if (!(pa.normal_world.dot(pb.normal_world) >= cos_max_angle)) continue;
+        // The better-estimated one survives and keeps its position, covariance and patch, so its EKF
+        // stays what it was; only its footprint grows to cover the other's.
+        const bool a_survives = pa.Sigma_world.trace() <= pb.Sigma_world.trace();
+        Primitive& keep = a_survives ? pa : pb;
+        const Primitive& drop = a_survives ? pb : pa;
+        const Eigen::Vector3d n = keep.normal_world.cast<double>();
+        const Eigen::Vector3d offset_world = drop.X_world - keep.X_world;
+        const double plane_sigma = std::sqrt(n.dot((keep.Sigma_world + drop.Sigma_world) * n));
+        if (!(std::abs(n.dot(offset_world)) <= config_.merge_plane_sigmas * plane_sigma)) continue;
+        const double separation = offset_world.norm();
+        if (!(separation <= static_cast<double>(keep.radius) + drop.radius)) continue;
+        const double grown = std::max(static_cast<double>(keep.radius), separation + drop.radius);
+        const double depth = (view.R_world_cam.transpose() * (keep.X_world - view.position_world)).z();
+        if (!(depth > 0.0) || !(grown * focal / depth <= config_.merge_max_radius_px)) continue;
+        keep.radius = static_cast<float>(grown);
+        keep.flags |= primitive_flags::kMerged;
+        const PrimitiveIndex dropped = a_survives ? b : a;
+        if (!ok(pool.erase(dropped))) continue;
+        ++report.merged;
+        // The survivor now answers for both cells.
+        const PrimitiveIndex kept = a_survives ? a : b;
+        cell_primitive_[cell] = kept;
+        cell_primitive_[other_cell] = kept;
+      }
+    }
+  }
+}
+
+void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& reference_view,
+                          std::uint32_t reference_index, const GrayImageView& other, const Viewpoint& other_view,
+                          PrimitivePoolView& pool, UpdateReport& report) {
+  const double focal = focal_mean(intrinsics_);
+  const std::int32_t stride = config_.seed_stride_px;
+  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio};
+  const Span<float> ncc_scratch(epipolar_ncc_.data(), epipolar_ncc_.size());
+  const Span<std::int32_t> xy_scratch(epipolar_xy_.data(), epipolar_xy_.size());
+  const Eigen::Matrix3d R_cam_world = reference_view.R_world_cam.transpose();
+  EpipolarQuery query;
+  query.first = reference_view;
+  query.second = other_view;
+  query.depth_min = config_.depth_min;
+  query.depth_max = config_.depth_max;
+  TwoViewObservation observation;
+  observation.view_a = reference_view;
+  observation.view_b = other_view;
+  observation.R_a_px2 = config_.ekf.R_px2;
+  observation.R_b_px2 = config_.ekf.R_px2;
+  bool pool_full = false;
+  for (std::int32_t cy = 0; cy < cells_y_ && !pool_full; ++cy) {
+    for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
+      const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
+      if (cell_covered_[cell] != 0 || cell_primitive_[cell] != kInvalidPrimitive) continue;
+      const std::int32_t sx = cx * stride + stride / 2;
+      const std::int32_t sy = cy * stride + stride / 2;
+      if (!patch_inside(reference, sx, sy, 1)) continue;
+      Primitive p;
+      extract_patch(reference, sx, sy, &p.patch);
+      NccTemplate tmpl;
+      make_template(p.patch, &tmpl);
+      if (tmpl.stddev_gray < config_.min_texture_stddev_gray) continue;
+      ++stats_.seeds_tried;
+      query.uv_first_px = Eigen::Vector2d(sx, sy);
+      Eigen::Vector2d matched_px;
+      float best = 0.0f;
+      if (search_epipolar(other, tmpl, query, intrinsics_, match, ncc_scratch, xy_scratch, &matched_px, &best) !=
+          MatchOutcome::kMatched) {
+        continue;
+      }
+      ++stats_.seeds_matched;
+      observation.uv_a_px = query.uv_first_px;
+      observation.uv_b_px = matched_px;
+      if (!ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world)) ||
+          sigma_bound(p.Sigma_world) > config_.max_initial_sigma) {
+        ++stats_.seeds_rejected_triangulation;
+        continue;
+      }
+      const double depth = (R_cam_world * (p.X_world - reference_view.position_world)).z();
+      if (!(depth >= config_.depth_min && depth <= config_.depth_max)) {
+        ++stats_.seeds_rejected_triangulation;
+        continue;
+      }
+      const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
+      p.normal_world = to_camera.cast<float>();  // until the plane fit below knows better
+      p.radius = static_cast<float>(footprint_radius(stride, depth, focal, 1.0));
+      p.saliency_h = 0.0f;
+      p.creating_view = reference_index;
+      PrimitiveIndex index = kInvalidPrimitive;
+      const Status inserted = pool.insert(p, &index);
+      if (inserted == Status::kPoolFull) {
+        ++report.pool_full_rejections;
+        pool_full = true;
+        break;
+      }
+      if (!ok(inserted)) continue;
+      ++report.spawned;
+      cell_primitive_[cell] = index;
+      cell_depth_[cell] = static_cast<float>(depth);
+      cell_state_[cell] |= kCellSpawned;
+    }
+  }
+  // Normals of the new primitives from their neighbours (new or tracked), then radii for the incidence.
+  for (std::int32_t cy = 0; cy < cells_y_; ++cy) {
+    for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
+      const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
+      if ((cell_state_[cell] & kCellSpawned) == 0) continue;
+      Primitive& p = pool[cell_primitive_[cell]];
+      std::array<Eigen::Vector3d, 8> neighbours;
+      std::size_t count = 0;
+      for (std::int32_t dy = -1; dy <= 1; ++dy) {
+        for (std::int32_t dx = -1; dx <= 1; ++dx) {
+          const std::int32_t nx = cx + dx;
+          const std::int32_t ny = cy + dy;
+          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
+          const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
+          if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
+          neighbours[count++] = pool[j].X_world;
+        }
+      }
+      PlaneFitConfig fit;
+      fit.max_neighbour_distance = 3.0 * stride * cell_depth_[cell] / focal;
+      Eigen::Vector3f normal;
+      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), count),
+                           reference_view.position_world, fit, &normal)) {
+        p.normal_world = normal;
+        const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
+        p.radius = static_cast<float>(
+            footprint_radius(stride, cell_depth_[cell], focal, to_camera.dot(normal.cast<double>())));
+      }
+    }
+  }
+}
+
+}  // namespace vantage

@@ -1,0 +1,159 @@
+#pragma once
+// The image measurement front end: structure from motion with known camera poses, one EKF per
+// primitive (paper section III). initialize() seeds the model from two images with a small baseline;
+// update() tracks every visible primitive into a new image and feeds the match to ekf_update, grows
+// the model where the image shows surface no primitive covers, and merges coplanar, well-estimated
+// neighbours (adaptive scale). Heap-free: images are read through views, the previous frame is copied
+// into an inline buffer, and all scratch space is a member.
+//
+// The object is large (a 1280x960 frame, per-cell tables, a table of view poses: about 5 MB); targets
+// hold it in static storage, never on the stack.
+#include <array>
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/common/status.hpp"
+#include "core/estimation/ekf.hpp"
+#include "core/frontend/measurement_source.hpp"
+#include "core/frontend/ncc.hpp"
+#include "core/frontend/patch_search.hpp"
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+#include "core/image/gray_image.hpp"
+#include "core/model/primitive_pool.hpp"
+
+namespace vantage {
+
+// Capacities. Frames up to 1280x960; seeds at least 2 px apart; the last kFrontEndMaxViews view poses
+// are kept to warp patches from their creating view (older primitives are matched unwarped).
+inline constexpr std::int32_t kFrontEndMaxWidth = 1280;
+inline constexpr std::int32_t kFrontEndMaxHeight = 960;
+inline constexpr std::int32_t kFrontEndMinSeedStride = 2;
+inline constexpr std::size_t kFrontEndMaxCells =
+    static_cast<std::size_t>(kFrontEndMaxWidth / kFrontEndMinSeedStride) * (kFrontEndMaxHeight / kFrontEndMinSeedStride);
+inline constexpr std::size_t kFrontEndMaxViews = 1024;
+inline constexpr std::int32_t kFrontEndMaxHalfWindow = 24;
+inline constexpr std::size_t kFrontEndMaxEpipolarSamples = 2048;
+
+struct FrontEndConfig {
+  // Seeds: one candidate pixel per seed_stride_px x seed_stride_px cell, if its patch has contrast.
+  std::int32_t seed_stride_px = 4;
+  float min_texture_stddev_gray = 6.0f;
+  // Matching: NCC threshold, uniqueness ratio, cap of the 3-sigma search window (px each side).
+  float ncc_min = 0.8f;
+  float uniqueness_ratio = 0.95f;
+  std::int32_t max_search_half_window_px = 12;
+  // The scene's depth range along the optical axis (scene units): bounds the epipolar search. The
+  // defaults suit the paper's scene (object at the origin seen from 40 units).
+  double depth_min = 25.0;
+  double depth_max = 55.0;
+  // Image measurement covariance R (px^2) and the Mahalanobis gate of the EKF; R also weighs both
+  // observations of a triangulation.
+  EkfConfig ekf;
+  // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
+  double max_initial_sigma = 10.0;
+  // Warp the reference patch when the plane-induced map differs from identity by more than this
+  // (Frobenius norm of A - I).
+  double warp_min_deviation = 0.05;
+  // A primitive faces a camera when cos(normal, direction to the camera) exceeds this.
+  double min_facing_cos = 0.05;
+  // Whole-image checks: below this standard deviation (gray levels) an image is constant; above this
+  // fraction of clipped pixels (0 or 255) it is black or saturated.
+  float min_image_stddev_gray = 2.0f;
+  float max_clipped_fraction = 0.9f;
+  // Normal refit from neighbours once a primitive has this many EKF updates.
+  std::uint32_t normal_refit_observations = 3;
+  // Adaptive scale (see README): neighbours in the image merge when both have at least
+  // merge_min_observations updates and sqrt(trace Sigma) <= merge_max_sigma, normals within
+  // merge_max_normal_angle_deg, the other's centre within merge_plane_sigmas standard deviations of the
+  // survivor's plane, footprints touching, and the grown footprint at most merge_max_radius_px wide.
+  bool merge_enabled = true;
+  std::uint32_t merge_min_observations = 3;
+  double merge_max_sigma = 0.05;
+  double merge_max_normal_angle_deg = 10.0;
+  double merge_plane_sigmas = 3.0;
+  double merge_max_radius_px = 8.0;
+
+  // kOk, kNonFiniteInput or kInvalidArgument naming no field (see the README for the ranges).
+  Status validate() const;
+};
+
+// Cumulative counters over the front end's life.
+struct FrontEndStats {
+  std::uint64_t frames_accepted = 0;
+  std::uint64_t rejected_invalid_image = 0;   // null, zero-size, truncated, or not the intrinsics' size
+  std::uint64_t rejected_unusable_image = 0;  // constant, black or saturated
+  std::uint64_t rejected_bad_pose = 0;        // NaN/Inf or not a rotation
+  std::uint64_t rejected_not_initialized = 0;
+  std::uint64_t seeds_tried = 0;              // textured seeds searched along an epipolar line
+  std::uint64_t seeds_matched = 0;
+  std::uint64_t seeds_rejected_triangulation = 0;
+  EkfStats ekf;
+};
+
+class ImageFrontEnd final : public MeasurementSource {
+ public:
+  ImageFrontEnd() = default;
+  ImageFrontEnd(const ImageFrontEnd&) = delete;
+  ImageFrontEnd& operator=(const ImageFrontEnd&) = delete;
+
+  // Sets the camera and the configuration and forgets any previous state. kInvalidArgument when the
+  // image exceeds kFrontEndMaxWidth x kFrontEndMaxHeight or a field is out of range; on error the front
+  // end stays unconfigured.
+  Status configure(const PinholeIntrinsics& intrinsics, const FrontEndConfig& config);
+
+  Status initialize(const GrayImageView& first, const Viewpoint& first_view, const GrayImageView& second,
+                    const Viewpoint& second_view, PrimitivePoolView& pool, UpdateReport* report) override;
+  Status update(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,
+                UpdateReport* report) override;
+  const PinholeIntrinsics& intrinsics() const override { return intrinsics_; }
+
+  const FrontEndConfig& config() const { return config_; }
+  const FrontEndStats& stats() const { return stats_; }
+  bool configured() const { return configured_; }
+  bool initialized() const { return initialized_; }
+  // Index the next accepted image gets (Primitive::creating_view counts images from 0).
+  std::uint32_t next_view_index() const { return next_view_index_; }
+  // The pose of an earlier image, if still in the table. kNotFound otherwise.
+  Status view_pose(std::uint32_t view_index, Viewpoint* pose) const;
+
+ private:
+  // Checks one frame and its pose; counts the rejection.
+  Status check_frame(const GrayImageView& image, const Viewpoint& view);
+  void reset_cells();
+  std::size_t cell_of(const Eigen::Vector2d& uv_px) const;
+  void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
+  void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
+  void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
+  // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
+  void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
+             const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
+  void remember(const GrayImageView& image, const Viewpoint& view);
+
+  PinholeIntrinsics intrinsics_;
+  FrontEndConfig config_;
+  FrontEndStats stats_;
+  bool configured_ = false;
+  bool initialized_ = false;
+  std::uint32_t next_view_index_ = 0;
+
+  GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight> previous_image_;
+  Viewpoint previous_view_;
+  std::array<Viewpoint, kFrontEndMaxViews> view_poses_{};  // view i at i % kFrontEndMaxViews
+
+  // Per seed cell of the current image: the nearest primitive whose projection falls in it, its camera
+  // depth, whether any primitive's footprint covers it, and whether its primitive was updated now.
+  std::int32_t cells_x_ = 0;
+  std::int32_t cells_y_ = 0;
+  std::array<PrimitiveIndex, kFrontEndMaxCells> cell_primitive_{};
+  std::array<float, kFrontEndMaxCells> cell_depth_{};
+  std::array<std::uint8_t, kFrontEndMaxCells> cell_covered_{};
+  std::array<std::uint8_t, kFrontEndMaxCells> cell_state_{};  // kCellUpdated | kCellSpawned
+
+  std::array<float, window_scratch_size(kFrontEndMaxHalfWindow)> window_scratch_{};
+  std::array<float, kFrontEndMaxEpipolarSamples> epipolar_ncc_{};
+  std::array<std::int32_t, 2 * kFrontEndMaxEpipolarSamples> epipolar_xy_{};
+};
+
+}  // namespace vantage

@@ -1,0 +1,63 @@
+#pragma once
+// NCC peak searches: in a 2D window around a predicted projection (tracking) and along an epipolar
+// segment (initialization and model augmentation). Both take the best local NCC maximum, require it
+// above a threshold and unique (no other local maximum, away from the peak's 8-neighbourhood, within
+// uniqueness_ratio of it), and refine it to subpixel by a parabola fit in x and in y.
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/common/span.hpp"
+#include "core/frontend/ncc.hpp"
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+#include "core/image/gray_image.hpp"
+
+namespace vantage {
+
+enum class MatchOutcome : std::uint8_t {
+  kMatched = 0,
+  kBelowThreshold,  // no local NCC maximum at or above the threshold
+  kAmbiguous,       // a second local maximum within uniqueness_ratio of the best
+  kNoRoom,          // the search region left the image or outgrew the scratch space
+};
+
+struct MatchConfig {
+  float ncc_min = 0.8f;            // NCC a match must reach
+  float uniqueness_ratio = 0.95f;  // a second local maximum must stay below ratio * best
+};
+
+// Tracking search: integer positions whose offset d from predicted_px has d^T S_inv d <= gate_chi2
+// (the 3-sigma ellipse for gate 9), inside a box of +-half_width x +-half_height pixels.
+struct WindowQuery {
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d S_inv = Eigen::Matrix2d::Identity();
+  double gate_chi2 = 9.0;
+  std::int32_t half_width_px = 2;
+  std::int32_t half_height_px = 2;
+};
+
+// Scratch floats a window search needs for a given half size.
+constexpr std::int32_t window_scratch_size(std::int32_t max_half_px) {
+  return (2 * max_half_px + 3) * (2 * max_half_px + 3);
+}
+
+MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
+                           const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc);
+
+// Epipolar search: the ray through uv_first_px of `first` between camera depths depth_min and depth_max
+// (z along first's optical axis, scene units) projects to a segment (a curve under distortion) in the
+// second image; every integer pixel on it is a candidate.
+struct EpipolarQuery {
+  Eigen::Vector2d uv_first_px = Eigen::Vector2d::Zero();
+  Viewpoint first;
+  Viewpoint second;
+  double depth_min = 1.0;
+  double depth_max = 100.0;
+};
+
+MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplate& tmpl, const EpipolarQuery& query,
+                             const PinholeIntrinsics& intrinsics, const MatchConfig& config, Span<float> scratch_ncc,
+                             Span<std::int32_t> scratch_xy, Eigen::Vector2d* uv_second_px, float* best_ncc);
+
+}  // namespace vantage

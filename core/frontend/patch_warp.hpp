@@ -1,0 +1,29 @@
+#pragma once
+// Warping the reference patch S of a primitive into a new view. The primitive's plane (through X with
+// normal n) induces a homography between the creating view and the new view; over a p x p patch it is
+// its first-order (affine) part at X: A maps a pixel offset around X's projection in the target view to
+// the offset around X's projection in the reference view (the second-order terms are below 0.01 px
+// over a 7x7 patch at the scene's depths).
+#include <array>
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/common/status.hpp"
+#include "core/frontend/ncc.hpp"
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+
+namespace vantage {
+
+// kBehindCamera when X is behind either camera, kInvalidArgument when the plane is seen edge-on from the
+// target (singular map) or n is not unit length.
+Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
+                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target);
+
+// The template seen from the target: the stored patch sampled (bilinear) at A * offset; target pixels
+// that map outside the stored patch are masked.
+void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A_ref_per_target,
+                         NccTemplate* out);
+
+}  // namespace vantage
