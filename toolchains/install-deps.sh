@@ -44,3 +44,25 @@ fi
 if ! command -v npm >/dev/null; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
 fi
+
+# Onboard cross build (hal + vantage-onboard for aarch64): the arm64 multiarch dev packages the drivers
+# link against. libcamera stays out of the cross build (VANTAGE_WITH_LIBCAMERA=OFF in the aarch64 preset).
+ARM64_PACKAGES=(libyaml-cpp-dev:arm64 libssl-dev:arm64)
+if ! dpkg --print-foreign-architectures | grep -qx arm64; then
+  echo "install-deps: adding the arm64 architecture for the cross build's libraries"
+  $SUDO dpkg --add-architecture arm64
+  $SUDO apt-get update -qq
+fi
+missing_arm64=()
+for p in "${ARM64_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing_arm64+=("$p")
+done
+if [ "${#missing_arm64[@]}" -gt 0 ]; then
+  echo "install-deps: installing ${missing_arm64[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing_arm64[@]}" >/dev/null
+fi
+
+# The MAVLink test peer (tests/mavlink_peer): node-mavlink and mavlink-mappings at the versions its
+# package-lock.json pins.
+bash "$(dirname "$0")/../tests/mavlink_peer/install.sh"
