@@ -24,6 +24,14 @@ PACKAGES=(
   libcamera-dev libv4l-dev libyaml-cpp-dev libssl-dev
   # aarch64 cross-build and its test runner
   g++-aarch64-linux-gnu qemu-user
+  # tests/vm: Debian's kernel under QEMU with the kernel's virtual cameras (vivid, vimc). The kernel
+  # images themselves are unpacked into a cache by tests/vm/fetch-kernels.sh below, not installed.
+  qemu-system-x86 qemu-system-arm busybox-static cpio xz-utils socat
+  # tests/vm: vimc is not in Debian's kernels; it is built out of tree from the kernel source against
+  # the headers (fetch-kernels.sh takes the kernel images at exactly these headers' version)
+  linux-headers-amd64 linux-source-6.1
+  # tests/vm: libcamera's vimc IPA module and its data, copied into the guest
+  libcamera-ipa
 )
 
 missing=()
@@ -66,3 +74,7 @@ fi
 # The MAVLink test peer (tests/mavlink_peer): node-mavlink and mavlink-mappings at the versions its
 # package-lock.json pins.
 bash "$(dirname "$0")/../tests/mavlink_peer/install.sh"
+
+# The VM tests' kernels (tests/vm): Debian's linux-image for amd64 and arm64 and arm64's busybox-static,
+# downloaded with apt-get and unpacked into /var/cache/vantage-vm (not installed on this machine).
+bash "$(dirname "$0")/../tests/vm/fetch-kernels.sh"
