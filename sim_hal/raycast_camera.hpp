@@ -18,6 +18,7 @@
 #include "sim_hal/depth_image.hpp"
 #include "sim_hal/scene/embree_scene.hpp"
 #include "sim_hal/scene/scene_config.hpp"
+#include "sim_hal/shading.hpp"
 #include "sim_hal/sim_pose_source.hpp"
 
 namespace vantage::sim {
@@ -57,6 +58,7 @@ class RaycastCamera final : public hal::Camera {
   RaycastCameraConfig config_;
   const SimPoseSource* pose_source_;
   const hal::Clock* clock_;
+  SolidTexture texture_;
   std::vector<float> ray_dir_cam_;  // per pixel (x, y) of the undistorted ray (x, y, 1), camera frame
   std::uint32_t sequence_ = 0;
 };

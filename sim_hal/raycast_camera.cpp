@@ -1,0 +1,185 @@
+#include "sim_hal/raycast_camera.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "core/geometry/projection.hpp"
+#include "sim_hal/sim_error.hpp"
+
+namespace vantage::sim {
+
+namespace {
+
+constexpr int kTile = 4;
+constexpr std::size_t kMaxLights = 8;  // 4 x 4 pixels = one rtcIntersect16 packet
+
+}  // namespace
+
+RaycastCamera::RaycastCamera(const EmbreeScene& scene, const RaycastCameraConfig& config,
+                             const SimPoseSource* pose_source, const hal::Clock* clock)
+    : scene_(scene), config_(config), pose_source_(pose_source), clock_(clock), texture_(config.shading.albedo) {
+  const PinholeIntrinsics& k = config_.intrinsics;
+  if (!ok(k.validate())) throw SimError("raycast camera: invalid intrinsics");
+  if (config_.threads < 1) throw SimError("raycast camera: threads must be >= 1");
+  if (!(config_.shading.ambient >= 0.0) || !(config_.shading.pixel_noise_sigma >= 0.0)) {
+    throw SimError("raycast camera: ambient and pixel noise must be >= 0");
+  }
+  for (const auto& light : config_.shading.lights) {
+    if (!light.direction_world.allFinite() || !(light.direction_world.norm() > 0.0) || !(light.intensity >= 0.0)) {
+      throw SimError("raycast camera: bad light (direction must be non-zero, intensity >= 0)");
+    }
+  }
+  if (config_.shading.lights.size() > kMaxLights) throw SimError("raycast camera: at most 8 lights");
+  for (auto& light : config_.shading.lights) light.direction_world.normalize();
+  // Per-pixel undistorted ray (x, y, 1) in the camera frame: the ray's parameter t is then camera z.
+  ray_dir_cam_.resize(static_cast<std::size_t>(k.width_px) * k.height_px * 2);
+  const Viewpoint identity;
+  for (int v = 0; v < k.height_px; ++v) {
+    for (int u = 0; u < k.width_px; ++u) {
+      const Eigen::Vector3d d = back_project_ray_world(Eigen::Vector2d(u, v), identity, k);
+      const std::size_t i = static_cast<std::size_t>(v) * k.width_px + u;
+      ray_dir_cam_[2 * i] = static_cast<float>(d.x() / d.z());
+      ray_dir_cam_[2 * i + 1] = static_cast<float>(d.y() / d.z());
+    }
+  }
+}
+
+void RaycastCamera::set_threads(int threads) { config_.threads = std::max(1, threads); }
+
+hal::CaptureStatus RaycastCamera::grab(MutableGrayImageView& out, hal::FrameInfo& info, std::int32_t /*timeout_ms*/) {
+  if (pose_source_ == nullptr) return hal::CaptureStatus::kNotStarted;
+  const PinholeIntrinsics& k = config_.intrinsics;
+  const std::int32_t stride = std::max(out.stride_bytes, k.width_px);
+  const std::size_t capacity = static_cast<std::size_t>(std::max(out.stride_bytes, out.width_px)) *
+                               static_cast<std::size_t>(std::max(out.height_px, 0));
+  if (out.pixels == nullptr || capacity < static_cast<std::size_t>(stride) * k.height_px) {
+    return hal::CaptureStatus::kBufferTooSmall;
+  }
+  MutableGrayImageView target{out.pixels, k.width_px, k.height_px, stride};
+  if (!ok(render(pose_source_->camera_pose(), target, nullptr, sequence_))) return hal::CaptureStatus::kCorruptFrame;
+  out = target;
+  info.sequence = sequence_++;
+  info.timestamp_ns = clock_ != nullptr ? clock_->now_ns() : 0;
+  return hal::CaptureStatus::kOk;
+}
+
+Status RaycastCamera::render(const Viewpoint& view, MutableGrayImageView out, DepthImage* depth,
+                             std::uint64_t noise_stream) const {
+  const Status pose_status = view.validate();
+  if (!ok(pose_status)) return pose_status;
+  const PinholeIntrinsics& k = config_.intrinsics;
+  if (out.pixels == nullptr || out.width_px < k.width_px || out.height_px < k.height_px ||
+      out.stride_bytes < k.width_px) {
+    return Status::kInvalidArgument;
+  }
+  if (depth != nullptr && (depth->width_px != k.width_px || depth->height_px != k.height_px ||
+                           depth->camera_z.size() != static_cast<std::size_t>(k.width_px) * k.height_px)) {
+    depth->resize(k.width_px, k.height_px);
+  }
+  const int thread_count = std::max(1, config_.threads);
+  if (thread_count == 1) {
+    render_rows(view, out, depth, noise_stream, 0, 1);
+    return Status::kOk;
+  }
+  std::vector<std::thread> workers;
+  workers.reserve(static_cast<std::size_t>(thread_count - 1));
+  for (int t = 1; t < thread_count; ++t) {
+    workers.emplace_back([&, t] { render_rows(view, out, depth, noise_stream, t, thread_count); });
+  }
+  render_rows(view, out, depth, noise_stream, 0, thread_count);
+  for (auto& w : workers) w.join();
+  return Status::kOk;
+}
+
+void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out, DepthImage* depth,
+                                std::uint64_t noise_stream, int thread_index, int thread_count) const {
+  const PinholeIntrinsics& k = config_.intrinsics;
+  const ShadingConfig& shading = config_.shading;
+  const Eigen::Matrix3f R = view.R_world_cam.cast<float>();
+  const Eigen::Vector3f origin = view.position_world.cast<float>();
+  const float ambient = static_cast<float>(shading.ambient);
+  const float noise_sigma = static_cast<float>(shading.pixel_noise_sigma);
+  const std::uint8_t background = shading.background_gray;
+  float light_dirs[kMaxLights][3];
+  float light_gains[kMaxLights];
+  const std::size_t light_count = std::min(shading.lights.size(), kMaxLights);
+  for (std::size_t l = 0; l < light_count; ++l) {
+    for (int a = 0; a < 3; ++a) light_dirs[l][a] = static_cast<float>(shading.lights[l].direction_world[a]);
+    light_gains[l] = static_cast<float>(shading.lights[l].intensity);
+  }
+  const int tiles_x = (k.width_px + kTile - 1) / kTile;
+  const int tiles_y = (k.height_px + kTile - 1) / kTile;
+
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(64) RTCRayHit16 packet;
+  alignas(64) int valid[16];
+  int px[16];
+  int py[16];
+
+  // Tile rows are interleaved across threads: neighbouring rows cost about the same, so the split is even.
+  for (int ty = thread_index; ty < tiles_y; ty += thread_count) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      for (int j = 0; j < 16; ++j) {
+        const int u = tx * kTile + (j % kTile);
+        const int v = ty * kTile + (j / kTile);
+        px[j] = u;
+        py[j] = v;
+        const bool inside = u < k.width_px && v < k.height_px;
+        valid[j] = inside ? -1 : 0;
+        const std::size_t i = inside ? static_cast<std::size_t>(v) * k.width_px + u : 0;
+        const Eigen::Vector3f d = R * Eigen::Vector3f(ray_dir_cam_[2 * i], ray_dir_cam_[2 * i + 1], 1.0f);
+        packet.ray.org_x[j] = origin.x();
+        packet.ray.org_y[j] = origin.y();
+        packet.ray.org_z[j] = origin.z();
+        packet.ray.dir_x[j] = d.x();
+        packet.ray.dir_y[j] = d.y();
+        packet.ray.dir_z[j] = d.z();
+        packet.ray.tnear[j] = 0.0f;
+        packet.ray.tfar[j] = std::numeric_limits<float>::infinity();
+        packet.ray.time[j] = 0.0f;
+        packet.ray.mask[j] = 0xFFFFFFFFu;
+        packet.ray.id[j] = static_cast<unsigned>(j);
+        packet.ray.flags[j] = 0;
+        packet.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect16(valid, scene_.handle(), &context, &packet);
+      for (int j = 0; j < 16; ++j) {
+        if (valid[j] == 0) continue;
+        const int u = px[j];
+        const int v = py[j];
+        const std::size_t pixel_index = static_cast<std::size_t>(v) * k.width_px + u;
+        float gray;
+        if (packet.hit.geomID[j] == RTC_INVALID_GEOMETRY_ID) {
+          gray = background;
+          if (depth != nullptr) depth->camera_z[pixel_index] = std::numeric_limits<float>::infinity();
+        } else {
+          const float t = packet.ray.tfar[j];
+          const Eigen::Vector3f dir(packet.ray.dir_x[j], packet.ray.dir_y[j], packet.ray.dir_z[j]);
+          Eigen::Vector3f n(packet.hit.Ng_x[j], packet.hit.Ng_y[j], packet.hit.Ng_z[j]);
+          const float len = n.norm();
+          n = len > 0.0f ? Eigen::Vector3f(n / len) : Eigen::Vector3f(-dir.normalized());
+          if (n.dot(dir) > 0.0f) n = -n;  // shade the side the camera sees
+          float light = ambient;
+          for (std::size_t l = 0; l < light_count; ++l) {
+            const float c = n.x() * light_dirs[l][0] + n.y() * light_dirs[l][1] + n.z() * light_dirs[l][2];
+            light += light_gains[l] * std::max(0.0f, c);
+          }
+          const Eigen::Vector3f X = origin + t * dir;
+          gray = 255.0f * texture_.albedo(X.x(), X.y(), X.z()) * light;
+          if (depth != nullptr) depth->camera_z[pixel_index] = t;
+        }
+        if (noise_sigma > 0.0f) gray += noise_sigma * hashed_gaussian(config_.seed, noise_stream, pixel_index);
+        out.pixels[static_cast<std::size_t>(v) * out.stride_bytes + u] =
+            static_cast<std::uint8_t>(std::clamp(gray, 0.0f, 255.0f) + 0.5f);
+      }
+    }
+  }
+}
+
+}  // namespace vantage::sim

@@ -1,0 +1,50 @@
+// Ray-cast camera frame rate at 640x480 on the default scene (the normalized glmark2 bunny), seen from
+// the viewing distance, with 1 and 2 render threads. Target: >= 100 frames/s with 2 threads (Release).
+// Run: vantage-bench --benchmark_filter=Render --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include <memory>
+
+#include "core/geometry/viewpoint.hpp"
+#include "core/image/gray_image.hpp"
+#include "sim_hal/raycast_camera.hpp"
+#include "sim_hal/world/sim_world.hpp"
+
+namespace {
+
+const vantage::sim::SimWorld& bunny_world() {
+  static const std::unique_ptr<vantage::sim::SimWorld> world =
+      std::make_unique<vantage::sim::SimWorld>(vantage::sim::SceneConfig::paper_defaults());
+  return *world;
+}
+
+void BM_RenderBunnyVga(benchmark::State& state) {
+  const auto& world = bunny_world();
+  vantage::sim::RaycastCameraConfig config;
+  config.intrinsics = world.config().intrinsics;
+  config.shading = world.config().shading;
+  config.threads = static_cast<int>(state.range(0));
+  const vantage::sim::RaycastCamera camera(world.scene(), config, nullptr);
+  vantage::Viewpoint view;
+  if (!vantage::ok(vantage::look_at(Eigen::Vector3d(world.config().viewing_distance, 0.0, 0.0),
+                                    Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &view))) {
+    state.SkipWithError("look_at failed");
+    return;
+  }
+  static vantage::GrayImageBuffer<640, 480> image;
+  if (!vantage::ok(image.resize(config.intrinsics.width_px, config.intrinsics.height_px))) {
+    state.SkipWithError("intrinsics larger than 640x480");
+    return;
+  }
+  for (auto _ : state) {
+    if (!vantage::ok(camera.render(view, image.view(), nullptr))) {
+      state.SkipWithError("render failed");
+      return;
+    }
+    benchmark::DoNotOptimize(image.view().pixels[0]);
+  }
+  state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_RenderBunnyVga)->Arg(1)->Arg(2)->ArgName("threads")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
