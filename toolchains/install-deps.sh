@@ -53,9 +53,12 @@ if ! command -v npm >/dev/null; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm >/dev/null
 fi
 
-# Onboard cross build (hal + vantage-onboard for aarch64): the arm64 multiarch dev packages the drivers
-# link against. libcamera stays out of the cross build (VANTAGE_WITH_LIBCAMERA=OFF in the aarch64 preset).
-ARM64_PACKAGES=(libyaml-cpp-dev:arm64 libssl-dev:arm64)
+# Onboard cross build (hal + vantage-onboard for aarch64): the arm64 multiarch libraries the drivers
+# link against. libssl-dev is Multi-Arch: same and installs beside the host's; libyaml-cpp-dev is not (its
+# arm64 package would replace the host's), so the cross build takes the arm64 runtime library and the
+# host's (architecture-independent) headers. libcamera stays out of the cross build
+# (VANTAGE_WITH_LIBCAMERA=OFF in the aarch64 preset).
+ARM64_PACKAGES=(libyaml-cpp0.7:arm64 libssl-dev:arm64)
 if ! dpkg --print-foreign-architectures | grep -qx arm64; then
   echo "install-deps: adding the arm64 architecture for the cross build's libraries"
   $SUDO dpkg --add-architecture arm64
