@@ -64,8 +64,11 @@ class GroundTruth {
 
   // True when the point with outward normal is seen from view: in front, inside the image,
   // front-facing and unoccluded.
+  // margin_px shrinks the image on every side; min_cos_incidence > 0 also rejects grazing views (the
+  // ground truth uses 0: any front-facing view counts).
   static bool visible_from(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, const Viewpoint& view,
-                           const Eigen::Vector3d& point, const Eigen::Vector3d& normal);
+                           const Eigen::Vector3d& point, const Eigen::Vector3d& normal, double margin_px = 0.0,
+                           double min_cos_incidence = 0.0);
 
   double coverage(const PrimitivePoolView& pool, double distance, double sigma_target) const;
   // Fills distances (one per alive primitive, in index order) when not null.

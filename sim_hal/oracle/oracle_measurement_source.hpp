@@ -2,7 +2,7 @@
 // Model updates from ground truth instead of images, to compare planners apart from image matching.
 // Candidate primitive sites are site_count area-weighted surface samples; each site becomes at most one
 // primitive. A site is seen from a view when GroundTruth::visible_from holds (in front, inside the image
-// with a patch margin, front-facing, unoccluded).
+// with a patch margin, not grazing, unoccluded).
 //  initialize(): a primitive for every site seen from both views, with covariance from forward
 //    propagation of the two observations' pixel noise (Sigma^-1 = sum_k H_k^T R^-1 H_k, so a small
 //    baseline gives a covariance elongated along depth) and position X_true + L z, z ~ N(0, I),
@@ -32,6 +32,7 @@ struct OracleConfig {
   double gate_chi2 = kChiSquare2Dof95;
   std::size_t site_count = 70000;       // candidate primitive sites on the surface
   double image_margin_px = kPatchSize / 2 + 1;
+  double min_cos_incidence = 0.2;       // no observation at grazing angles (beyond ~78 degrees)
   bool augment = true;
   std::uint32_t seed = 11;
 };
