@@ -4,9 +4,10 @@
 # the serial console and passes when the guest reports exit 0, at least --min-pass PASS lines and no
 # FAIL line. The VM is killed at --timeout and the console log is printed on any failure.
 #
-# usage: run-vm.sh --arch x86_64|aarch64 --work DIR --cache DIR --modules "vivid[:params] ..."
+# usage: run-vm.sh --arch x86_64|aarch64 --work DIR --cache DIR [--modules "vivid[:p=v,...] ..."]
 #                  --bin FILE... [--data FILE...] --run "guest shell command" [--expect-node /dev/X...]
 #                  [--libcamera] [--timeout S] [--min-pass N] [--serial2-socket PATH] [--console-copy FILE]
+# --serial2-socket gives the guest a second UART (ttyS1) connected to that listening unix socket.
 # --work is this test's scratch directory; --cache is shared by all VM tests of a build (vmlinux,
 # vimc.ko, the base initramfs per module set). In the guest, --bin files are in /opt/vantage/bin and
 # --data files in /opt/vantage; --run executes in /opt/vantage.
@@ -37,7 +38,6 @@ while [ $# -gt 0 ]; do
   esac
 done
 [ -n "$work" ] && [ -n "$cache" ] && [ -n "$run_cmd" ] || die "--work, --cache and --run are required"
-[ "${#modules[@]}" -gt 0 ] || die "--modules is required"
 
 # ---- what this architecture needs, and what to install when it is missing
 case $arch in
@@ -218,9 +218,10 @@ else
   args+=(-M virt -cpu cortex-a57 -accel tcg)
 fi
 if [ -n "$serial2" ]; then
-  # A second UART (ttyS1 in the guest) whose host end is a unix socket another process connects to.
+  # A second UART (ttyS1 in the guest) connected to a unix socket another process listens on.
   [ "$arch" = x86_64 ] || die "--serial2-socket needs x86_64 (the arm virt machine has one UART)"
-  args+=(-serial mon:stdio -chardev "socket,id=serial2,path=$serial2,server=on,wait=off" -serial chardev:serial2)
+  [ -S "$serial2" ] || die "--serial2-socket $serial2 is not a listening unix socket"
+  args+=(-serial mon:stdio -chardev "socket,id=serial2,path=$serial2" -serial chardev:serial2)
 fi
 append="console=$console quiet panic=-1 rdinit=/init"
 log="$work/console.log"
