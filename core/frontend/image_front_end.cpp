@@ -34,7 +34,7 @@ Status FrontEndConfig::validate() const {
   const double values[] = {min_texture_stddev_gray, ncc_min, uniqueness_ratio, depth_min, depth_max,
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
-                           merge_plane_sigmas, merge_max_radius_px};
+                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -43,6 +43,7 @@ Status FrontEndConfig::validate() const {
   if (seed_stride_px < kFrontEndMinSeedStride || seed_stride_px > 64) return Status::kInvalidArgument;
   if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f)) return Status::kInvalidArgument;
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
+  if (subpixel_iterations < 0 || subpixel_iterations > 20) return Status::kInvalidArgument;
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
   }
@@ -52,6 +53,7 @@ Status FrontEndConfig::validate() const {
   if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
     return Status::kInvalidArgument;
   }
+  if (!(occlusion_sigmas >= 0.0)) return Status::kInvalidArgument;
   if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
       !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
     return Status::kInvalidArgument;
@@ -211,9 +213,21 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
                           UpdateReport& report) {
   const double focal = focal_mean(intrinsics_);
   const double stride = config_.seed_stride_px;
-  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio};
+  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
+  // Occluders first: every primitive in front of the camera, pushed back by its uncertainty.
+  const double k_sigma = config_.occlusion_sigmas;
+  const bool occlusion = config_.occlusion_enabled && ok(depth_buffer_.configure(view, intrinsics_));
+  if (occlusion) {
+    for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
+      if (!pool.is_alive(i)) continue;
+      const Primitive& p = pool[i];
+      const Eigen::Vector3d ray = (p.X_world - view.position_world).normalized();
+      const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
+      (void)depth_buffer_.splat((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
+    }
+  }
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i)) continue;
     Primitive& p = pool[i];
@@ -225,6 +239,13 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const double distance = to_camera.norm();
     const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
     if (!(facing > config_.min_facing_cos)) continue;
+    if (occlusion) {
+      const Eigen::Vector3d ray = -to_camera / distance;
+      const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
+      if (!depth_buffer_.is_visible((p.X_world - k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius)) {
+        continue;
+      }
+    }
     ++report.predicted_in_view;
 
     // Coverage: the footprint's disc in this image, and the nearest primitive per cell.
@@ -386,7 +407,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
                           PrimitivePoolView& pool, UpdateReport& report) {
   const double focal = focal_mean(intrinsics_);
   const std::int32_t stride = config_.seed_stride_px;
-  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio};
+  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> ncc_scratch(epipolar_ncc_.data(), epipolar_ncc_.size());
   const Span<std::int32_t> xy_scratch(epipolar_xy_.data(), epipolar_xy_.size());
   const Eigen::Matrix3d R_cam_world = reference_view.R_world_cam.transpose();
@@ -437,7 +458,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
       p.normal_world = to_camera.cast<float>();  // until the plane fit below knows better
       p.radius = static_cast<float>(footprint_radius(stride, depth, focal, 1.0));
-      p.saliency_h = 0.0f;
+      p.saliency_h = compute_saliency_h(p.patch, config_.saliency);
       p.creating_view = reference_index;
       PrimitiveIndex index = kInvalidPrimitive;
       const Status inserted = pool.insert(p, &index);

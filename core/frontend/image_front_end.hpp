@@ -14,6 +14,8 @@
 #include <Eigen/Core>
 
 #include "core/common/status.hpp"
+#include "core/criterion/depth_buffer.hpp"
+#include "core/criterion/saliency.hpp"
 #include "core/estimation/ekf.hpp"
 #include "core/frontend/measurement_source.hpp"
 #include "core/frontend/ncc.hpp"
@@ -44,6 +46,8 @@ struct FrontEndConfig {
   float ncc_min = 0.8f;
   float uniqueness_ratio = 0.95f;
   std::int32_t max_search_half_window_px = 12;
+  // Gauss-Newton steps of the photometric subpixel refinement after the parabola fit (0: parabola only).
+  int subpixel_iterations = 3;
   // The scene's depth range along the optical axis (scene units): bounds the epipolar search. The
   // defaults suit the paper's scene (object at the origin seen from 40 units).
   double depth_min = 25.0;
@@ -62,6 +66,13 @@ struct FrontEndConfig {
   // fraction of clipped pixels (0 or 255) it is black or saturated.
   float min_image_stddev_gray = 2.0f;
   float max_clipped_fraction = 0.9f;
+  // Occlusion: primitives are splatted into a depth buffer pushed back by occlusion_sigmas standard
+  // deviations along the ray and tested pulled forward by as many, so only an occluder in front beyond
+  // both uncertainties hides a primitive.
+  bool occlusion_enabled = true;
+  double occlusion_sigmas = 3.0;
+  // h(P) of new primitives (core/criterion/saliency.hpp).
+  SaliencyParams saliency;
   // Normal refit from neighbours once a primitive has this many EKF updates.
   std::uint32_t normal_refit_observations = 3;
   // Adaptive scale (see README): neighbours in the image merge when both have at least
@@ -151,6 +162,7 @@ class ImageFrontEnd final : public MeasurementSource {
   std::array<std::uint8_t, kFrontEndMaxCells> cell_covered_{};
   std::array<std::uint8_t, kFrontEndMaxCells> cell_state_{};  // kCellUpdated | kCellSpawned
 
+  DepthBuffer<> depth_buffer_;
   std::array<float, window_scratch_size(kFrontEndMaxHalfWindow)> window_scratch_{};
   std::array<float, kFrontEndMaxEpipolarSamples> epipolar_ncc_{};
   std::array<std::int32_t, 2 * kFrontEndMaxEpipolarSamples> epipolar_xy_{};

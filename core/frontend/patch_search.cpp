@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include <Eigen/Cholesky>
+
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
@@ -15,6 +17,98 @@ Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left,
 }
 
 }  // namespace
+
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px) {
+  // Block of image values around the peak: the patch, +-1 px of shift, one more for the bilinear cell and
+  // one for the central-difference gradient.
+  constexpr int kMargin = 3;
+  constexpr int kBlock = kPatchSize + 2 * kMargin;
+  if (!patch_inside(image, x, y, kMargin) || tmpl.valid_count < 8) return false;
+  Eigen::Vector2d d = *uv_px - Eigen::Vector2d(x, y);
+  if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0)) return false;
+  float block[kBlock][kBlock];
+  float gx[kBlock][kBlock];
+  float gy[kBlock][kBlock];
+  for (int j = 0; j < kBlock; ++j) {
+    const std::uint8_t* row = image.pixels + (y - kPatchRadius - kMargin + j) * image.stride_bytes + (x - kPatchRadius - kMargin);
+    for (int i = 0; i < kBlock; ++i) block[j][i] = row[i];
+  }
+  for (int j = 1; j < kBlock - 1; ++j) {
+    for (int i = 1; i < kBlock - 1; ++i) {
+      gx[j][i] = 0.5f * (block[j][i + 1] - block[j][i - 1]);
+      gy[j][i] = 0.5f * (block[j + 1][i] - block[j - 1][i]);
+    }
+  }
+  double alpha = 1.0;
+  double beta = 0.0;
+  {
+    double sum = 0.0;
+    for (int ty = 0; ty < kPatchSize; ++ty) {
+      for (int tx = 0; tx < kPatchSize; ++tx) sum += tmpl.mask[ty * kPatchSize + tx] * block[ty + kMargin][tx + kMargin];
+    }
+    beta = sum / tmpl.valid_count;
+  }
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    const int ix = static_cast<int>(std::floor(d.x()));
+    const int iy = static_cast<int>(std::floor(d.y()));
+    const float fx = static_cast<float>(d.x() - ix);
+    const float fy = static_cast<float>(d.y() - iy);
+    const float w00 = (1.0f - fx) * (1.0f - fy);
+    const float w01 = fx * (1.0f - fy);
+    const float w10 = (1.0f - fx) * fy;
+    const float w11 = fx * fy;
+    // Upper triangle of J^T J and J^T r as scalars (J = [gx, gy, -t, -1]): this loop is the tracker's hot path.
+    double s_xx = 0, s_xy = 0, s_xt = 0, s_x = 0, s_yy = 0, s_yt = 0, s_y = 0, s_tt = 0, s_t = 0, s_1 = 0;
+    double r_x = 0, r_y = 0, r_t = 0, r_1 = 0;
+    for (int ty = 0; ty < kPatchSize; ++ty) {
+      const int j = ty + kMargin + iy;
+      for (int tx = 0; tx < kPatchSize; ++tx) {
+        const int k = ty * kPatchSize + tx;
+        if (tmpl.mask[k] <= 0.5f) continue;
+        const int i = tx + kMargin + ix;
+        const float value = w00 * block[j][i] + w01 * block[j][i + 1] + w10 * block[j + 1][i] + w11 * block[j + 1][i + 1];
+        const float grad_x = w00 * gx[j][i] + w01 * gx[j][i + 1] + w10 * gx[j + 1][i] + w11 * gx[j + 1][i + 1];
+        const float grad_y = w00 * gy[j][i] + w01 * gy[j][i + 1] + w10 * gy[j + 1][i] + w11 * gy[j + 1][i + 1];
+        const double gx_d = grad_x;
+        const double gy_d = grad_y;
+        const double t = tmpl.values[k];
+        const double r = value - alpha * t - beta;
+        s_xx += gx_d * gx_d;
+        s_xy += gx_d * gy_d;
+        s_xt += gx_d * t;
+        s_x += gx_d;
+        s_yy += gy_d * gy_d;
+        s_yt += gy_d * t;
+        s_y += gy_d;
+        s_tt += t * t;
+        s_t += t;
+        s_1 += 1.0;
+        r_x += gx_d * r;
+        r_y += gy_d * r;
+        r_t += t * r;
+        r_1 += r;
+      }
+    }
+    Eigen::Matrix4d JtJ;
+    JtJ << s_xx, s_xy, -s_xt, -s_x,
+           s_xy, s_yy, -s_yt, -s_y,
+           -s_xt, -s_yt, s_tt, s_t,
+           -s_x, -s_y, s_t, s_1;
+    const Eigen::Vector4d Jtr(r_x, r_y, -r_t, -r_1);
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(JtJ);
+    if (ldlt.info() != Eigen::Success) return false;
+    const Eigen::Vector4d step = -ldlt.solve(Jtr);
+    if (!step.allFinite()) return false;
+    d += step.head<2>();
+    alpha += step(2);
+    beta += step(3);
+    if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0) || !(alpha > 0.0)) return false;
+    if (step.head<2>().norm() < 1e-3) break;
+  }
+  *uv_px = Eigen::Vector2d(x, y) + d;
+  return true;
+}
 
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
                            const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc) {
@@ -76,6 +170,7 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     }
   }
   *uv_px = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
+  if (config.subpixel_iterations > 0) (void)refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, uv_px);
   return MatchOutcome::kMatched;
 }
 
@@ -177,6 +272,9 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   const float up = ncc_at(second_image, bx, by - 1, tmpl);
   const float down = ncc_at(second_image, bx, by + 1, tmpl);
   *uv_second_px = refine(bx, by, best, left, right, up, down);
+  if (config.subpixel_iterations > 0) {
+    (void)refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, uv_second_px);
+  }
   return MatchOutcome::kMatched;
 }
 

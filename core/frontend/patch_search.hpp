@@ -25,7 +25,17 @@ enum class MatchOutcome : std::uint8_t {
 struct MatchConfig {
   float ncc_min = 0.8f;            // NCC a match must reach
   float uniqueness_ratio = 0.95f;  // a second local maximum must stay below ratio * best
+  // Gauss-Newton steps of the photometric refinement after the parabola fit (0: parabola only).
+  int subpixel_iterations = 3;
 };
+
+// Subpixel refinement of a match near integer peak (x, y): Gauss-Newton on I(p + d) = alpha * t + beta
+// (gain and offset, like NCC) over the template's valid pixels, started at *uv_px (the parabola fit).
+// A parabola through NCC samples is biased toward integer positions ("pixel locking"); this is not.
+// False, *uv_px untouched, when it does not converge within one pixel of (x, y) or the block leaves the
+// image.
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px);
 
 // Tracking search: integer positions whose offset d from predicted_px has d^T S_inv d <= gate_chi2
 // (the 3-sigma ellipse for gate 9), inside a box of +-half_width x +-half_height pixels.

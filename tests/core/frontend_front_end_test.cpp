@@ -1,0 +1,273 @@
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+#include <catch2/catch.hpp>
+
+#include "core/frontend/image_front_end.hpp"
+#include "tests/core/frontend_test_scene.hpp"
+#include "tests/support/no_allocation.hpp"
+
+using namespace vantage;
+using vantage::test::TexturedPlane;
+
+namespace {
+
+// Big objects live in static storage, as in a target.
+ImageFrontEnd g_front_end;
+PrimitivePool<8192> g_pool;
+
+FrontEndConfig plane_config() {
+  FrontEndConfig config;
+  config.depth_min = 25.0;
+  config.depth_max = 55.0;
+  return config;
+}
+
+struct Scene {
+  PinholeIntrinsics k = vantage::test::small_intrinsics();
+  TexturedPlane plane;
+  std::vector<std::uint8_t> render(const Viewpoint& view) const {
+    std::vector<std::uint8_t> pixels;
+    vantage::test::render_plane(plane, view, k, &pixels);
+    return pixels;
+  }
+};
+
+// Distance of a primitive's position from the plane x = 0, in units of its standard deviation along x.
+double normalized_plane_error(const Primitive& p) { return p.X_world.x() / std::sqrt(p.Sigma_world(0, 0)); }
+
+// A digest of the pool's estimates, to tell "unchanged".
+double pool_digest(const PrimitivePoolView& pool) {
+  double digest = static_cast<double>(pool.size());
+  for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
+    if (!pool.is_alive(i)) continue;
+    digest += (i + 1) * (pool[i].X_world.sum() + pool[i].Sigma_world.sum() + pool[i].radius + pool[i].flags);
+  }
+  return digest;
+}
+
+void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewpoint& second) {
+  g_pool.clear();
+  REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
+  const auto a = scene.render(first);
+  const auto b = scene.render(second);
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(b, scene.k),
+                                    second, g_pool, &report)));
+  REQUIRE(report.spawned > 200);
+}
+
+}  // namespace
+
+TEST_CASE("initialization triangulates a textured plane with a covariance elongated along depth") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  double sum_sq = 0.0;
+  int count = 0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    const Primitive& p = g_pool[i];
+    CHECK(p.creating_view == 0u);
+    CHECK(p.observation_count == 0u);
+    CHECK(p.radius > 0.0f);
+    sum_sq += normalized_plane_error(p) * normalized_plane_error(p);
+    ++count;
+    // Small baseline: the largest axis of Sigma points along the viewing ray (x here), many times longer.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(p.Sigma_world);
+    const Eigen::Vector3d major = eigen.eigenvectors().col(2);
+    const Eigen::Vector3d ray = (p.X_world - first.position_world).normalized();
+    CHECK(std::abs(major.dot(ray)) > 0.99);
+    CHECK(eigen.eigenvalues()(2) > 100.0 * eigen.eigenvalues()(1));
+  }
+  // Errors along depth consistent with the covariance (1-dof chi-square mean 1; loose band for a
+  // correlated, finite sample).
+  CHECK(std::sqrt(sum_sq / count) < 2.0);
+  CHECK(g_front_end.next_view_index() == 2u);
+}
+
+TEST_CASE("tracking a third view matches most visible primitives and shrinks their uncertainty") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  double depth_sigma_before = 0.0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (g_pool.is_alive(i)) depth_sigma_before += std::sqrt(g_pool[i].Sigma_world(0, 0));
+  }
+  depth_sigma_before /= static_cast<double>(g_pool.size());
+  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const auto c = scene.render(third);
+  const std::uint64_t revision = g_pool.revision();
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report)));
+  CHECK(report.predicted_in_view > 200u);
+  CHECK(report.matched >= 0.8 * report.predicted_in_view);
+  CHECK(report.updated >= 0.9 * report.matched);
+  CHECK(report.matched + report.failed_matches == report.predicted_in_view);
+  CHECK(g_pool.revision() > revision);
+  double depth_sigma_after = 0.0;
+  double sum_sq = 0.0;
+  int updated = 0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i) || g_pool[i].observation_count == 0) continue;
+    depth_sigma_after += std::sqrt(g_pool[i].Sigma_world(0, 0));
+    sum_sq += normalized_plane_error(g_pool[i]) * normalized_plane_error(g_pool[i]);
+    ++updated;
+  }
+  REQUIRE(updated > 100);
+  CHECK(depth_sigma_after / updated < 0.3 * depth_sigma_before);
+  CHECK(std::sqrt(sum_sq / updated) < 2.0);
+}
+
+TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  // Forget the right part of the plane (y > 4): the next image shows it uncovered.
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (g_pool.is_alive(i) && g_pool[i].X_world.y() > 4.0) REQUIRE(ok(g_pool.erase(i)));
+  }
+  const std::size_t before = g_pool.size();
+  const Viewpoint third = vantage::test::looking_at_origin({39.5, 4.0, 1.0});
+  const auto image = scene.render(third);
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+  CHECK(report.spawned > 100u);
+  CHECK(g_pool.size() == before + report.spawned - report.merged);
+  int new_ones = 0;
+  int in_hole = 0;
+  double sum_sq = 0.0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i) || g_pool[i].creating_view != 2u) continue;
+    ++new_ones;
+    in_hole += g_pool[i].X_world.y() > 3.0 ? 1 : 0;  // one cell of slack at the hole's edge
+    sum_sq += normalized_plane_error(g_pool[i]) * normalized_plane_error(g_pool[i]);
+    CHECK(g_pool[i].saliency_h >= 0.0f);
+    CHECK(g_pool[i].saliency_h <= 1.0f);
+  }
+  CHECK(new_ones == static_cast<int>(report.spawned));
+  // Almost all in the hole; the rest fill the few cells the first pair left empty (untextured seeds).
+  CHECK(in_hole >= 0.9 * new_ones);
+  CHECK(std::sqrt(sum_sq / new_ones) < 2.0);
+}
+
+TEST_CASE("bad frames and poses are refused with a clear status and leave the model unchanged") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const auto good = scene.render(third);
+  const double digest = pool_digest(g_pool);
+  const std::uint64_t revision = g_pool.revision();
+  const std::uint32_t views = g_front_end.next_view_index();
+  const FrontEndStats stats = g_front_end.stats();
+  const std::int32_t w = scene.k.width_px;
+  const std::int32_t h = scene.k.height_px;
+  const std::vector<std::uint8_t> black(static_cast<std::size_t>(w) * h, 0);
+  const std::vector<std::uint8_t> white(static_cast<std::size_t>(w) * h, 255);
+  const std::vector<std::uint8_t> grey(static_cast<std::size_t>(w) * h, 128);
+  std::vector<std::uint8_t> clipped = white;  // 95 % saturated, a textured strip at the top
+  for (std::size_t i = 0; i < clipped.size() / 20; ++i) clipped[i] = good[i];
+  Viewpoint nan_view = third;
+  nan_view.position_world.y() = std::nan("");
+  Viewpoint skew = third;
+  skew.R_world_cam(0, 0) += 0.1;
+
+  struct Case {
+    const char* what;
+    GrayImageView image;
+    Viewpoint view;
+    Status expected;
+  };
+  const Case cases[] = {
+      {"null pixels", GrayImageView{nullptr, w, h, w}, third, Status::kInvalidImage},
+      {"stride shorter than a row", GrayImageView{good.data(), w, h, w - 1}, third, Status::kInvalidImage},
+      {"truncated: fewer rows than the camera's", GrayImageView{good.data(), w, h - 1, w}, third, Status::kInvalidImage},
+      {"zero size", GrayImageView{good.data(), 0, 0, 0}, third, Status::kInvalidImage},
+      {"all black", vantage::test::view_of(black, scene.k), third, Status::kUnusableImage},
+      {"saturated", vantage::test::view_of(white, scene.k), third, Status::kUnusableImage},
+      {"mostly saturated", vantage::test::view_of(clipped, scene.k), third, Status::kUnusableImage},
+      {"constant grey", vantage::test::view_of(grey, scene.k), third, Status::kUnusableImage},
+      {"pose with NaN", vantage::test::view_of(good, scene.k), nan_view, Status::kNonFiniteInput},
+      {"rotation that is not one", vantage::test::view_of(good, scene.k), skew, Status::kInvalidArgument},
+  };
+  for (const Case& c : cases) {
+    INFO(c.what);
+    UpdateReport report;
+    report.matched = 99;
+    CHECK(g_front_end.update(c.image, c.view, g_pool, &report) == c.expected);
+    CHECK(report.matched == 0u);  // the report is cleared, not left stale
+    CHECK(pool_digest(g_pool) == digest);
+    CHECK(g_pool.revision() == revision);
+    CHECK(g_front_end.next_view_index() == views);
+  }
+  const FrontEndStats& after = g_front_end.stats();
+  CHECK(after.rejected_invalid_image == stats.rejected_invalid_image + 4);
+  CHECK(after.rejected_unusable_image == stats.rejected_unusable_image + 4);
+  CHECK(after.rejected_bad_pose == stats.rejected_bad_pose + 2);
+  CHECK(after.frames_accepted == stats.frames_accepted);
+  // The front end still works after the refusals.
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(good, scene.k), third, g_pool, &report)));
+  CHECK(report.updated > 0u);
+}
+
+TEST_CASE("update before initialize, and initialize from a bad pair, are refused") {
+  Scene scene;
+  g_pool.clear();
+  REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const auto a = scene.render(first);
+  UpdateReport report;
+  CHECK(g_front_end.update(vantage::test::view_of(a, scene.k), first, g_pool, &report) == Status::kNotInitialized);
+  // No baseline.
+  CHECK(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(a, scene.k), first,
+                               g_pool, &report) == Status::kInvalidArgument);
+  std::vector<std::uint8_t> black(a.size(), 0);
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  CHECK(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(black, scene.k),
+                               second, g_pool, &report) == Status::kUnusableImage);
+  CHECK(g_pool.size() == 0u);
+  CHECK_FALSE(g_front_end.initialized());
+}
+
+TEST_CASE("configure refuses cameras beyond the buffers and out-of-range settings") {
+  PinholeIntrinsics big = vantage::test::small_intrinsics(2000, 1000);
+  CHECK(g_front_end.configure(big, FrontEndConfig{}) == Status::kInvalidArgument);
+  FrontEndConfig bad;
+  bad.depth_max = bad.depth_min;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad = FrontEndConfig{};
+  bad.ncc_min = std::nanf("");
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  bad = FrontEndConfig{};
+  bad.seed_stride_px = 1;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  CHECK_FALSE(g_front_end.configured());
+}
+
+TEST_CASE("initialize and update do not allocate") {
+  Scene scene;
+  g_pool.clear();
+  REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const auto a = scene.render(first);
+  const auto b = scene.render(second);
+  const auto c = scene.render(third);
+  UpdateReport report;
+  Status status = Status::kOk;
+  REQUIRE_NO_ALLOCATION(status = g_front_end.initialize(vantage::test::view_of(a, scene.k), first,
+                                                        vantage::test::view_of(b, scene.k), second, g_pool, &report));
+  REQUIRE(ok(status));
+  REQUIRE_NO_ALLOCATION(status = g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report));
+  REQUIRE(ok(status));
+  CHECK(report.updated > 0u);
+}
