@@ -1,0 +1,233 @@
+#pragma once
+// The NBV criterion of the paper (section IV, eqs. 4-9) over a model of primitives, heap-free.
+//
+//   f(nu, P) = || v^T Psi ||, Psi = [l1 e1, l2 e2, l3 e3] (eq. 4), v the unit viewing direction to X.
+//              Psi Psi^T = Sigma^2, so f = sqrt(v^T Sigma^2 v) = |Sigma v|: the cache keeps Sigma, no
+//              per-view eigen-decomposition (compute_psi below gives Psi itself; a test checks both agree).
+//   g(nu, P) = projected area, in pixels of the camera's image, of the primitive's planar footprint (disc
+//              of `radius` with `normal_world`): pi r^2 fx fy (n . (x_cam - X)) / z^3 for a small disc;
+//              0 when back-facing, behind the camera, centre outside the image, or occluded.
+//   h(P)     = Primitive::saliency_h (core/criterion/saliency.hpp, set when the primitive is created).
+//   C = g^h / f (eq. 7) and F(nu) = sum_i w_i C_i (eq. 8), w = det Sigma (eq. 9), over visible
+//   primitives only: an invisible primitive (g = 0) adds exactly 0, never 0^0 = 1.
+//
+// CriterionModel<Capacity>::refresh() computes everything that does not depend on nu once per model
+// update: Sigma and det Sigma (in float, relative to the model's largest variance so that tiny
+// covariances do not underflow), h, the footprint, and an order of the primitives into spatial clusters
+// of kClusterSize with a bounding sphere and a normal cone each. A view then (1) rejects whole clusters
+// that lie outside its frustum or face away from it, (2) splats the front-facing primitives of the rest
+// into a software depth buffer (DepthBuffer), computing each one's contribution in the same
+// vectorizable loop, and (3) sums the contributions of those that pass the depth test.
+//
+// Evaluation is const on the model and writes only to a caller-owned CriterionScratch, so several
+// threads may evaluate views of one model at once, each with its own scratch (the core starts none).
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/common/span.hpp"
+#include "core/common/status.hpp"
+#include "core/criterion/depth_buffer.hpp"
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+#include "core/model/primitive.hpp"
+#include "core/model/primitive_pool.hpp"
+
+namespace vantage {
+
+inline constexpr std::size_t kClusterSize = 64;
+
+constexpr std::size_t round_up_to_clusters(std::size_t n) { return (n + kClusterSize - 1) / kClusterSize * kClusterSize; }
+
+// Psi = [l1 e1, l2 e2, l3 e3] of eq. 4 (eigenvalues descending). Sigma must be SPD (caller checks).
+Eigen::Matrix3d compute_psi(const Eigen::Matrix3d& Sigma);
+
+// One primitive seen from one viewpoint, in double precision (for tests and diagnostics).
+struct CriterionTerms {
+  bool visible = false;      // front-facing, centre in the image, passes the depth test
+  double g_px2 = 0.0;        // projected footprint area, camera pixels (0 when not visible)
+  double f = 0.0;            // || v^T Psi ||, scene units^2
+  double h = 0.0;            // saliency exponent
+  double w = 0.0;            // det Sigma, units^6
+  double contribution = 0.0; // w g^h / f when visible, else exactly 0
+};
+
+// Bounds of one cluster: sphere around every footprint, and a cone around every normal.
+struct ClusterBounds {
+  float centre_x = 0.0f;
+  float centre_y = 0.0f;
+  float centre_z = 0.0f;
+  float radius = 0.0f;
+  float axis_x = 0.0f;  // unit mean normal; zero when the cone is too wide to cull (>= 90 degrees)
+  float axis_y = 0.0f;
+  float axis_z = 0.0f;
+  float sin_half_angle = 1.0f;
+  float cos_half_angle = 0.0f;
+};
+
+// Per-thread working memory of a view evaluation: the depth buffer, the surviving clusters, and one
+// entry per front-facing in-image primitive. Capacity-free view; CriterionScratch<Capacity, W, H> owns.
+class CriterionScratchView {
+ public:
+  CriterionScratchView(const CriterionScratchView&) = delete;
+  CriterionScratchView& operator=(const CriterionScratchView&) = delete;
+
+  DepthBufferView& depth() { return depth_; }
+  const DepthBufferView& depth() const { return depth_; }
+  std::size_t capacity() const { return capacity_; }
+  // Statistics of the last evaluation (culling effectiveness).
+  std::size_t clusters_total() const { return clusters_total_; }
+  std::size_t clusters_kept() const { return clusters_kept_; }
+  std::size_t candidates() const { return entry_count_; }
+
+ protected:
+  CriterionScratchView(DepthBufferView& depth, std::uint32_t* clusters, std::int32_t* pixel, float* threshold,
+                       float* contribution, std::uint32_t* slot, std::size_t capacity)
+      : depth_(depth), clusters_(clusters), pixel_(pixel), threshold_(threshold), contribution_(contribution),
+        slot_(slot), capacity_(capacity) {}
+  ~CriterionScratchView() = default;
+
+ private:
+  friend class CriterionModelView;
+  DepthBufferView& depth_;
+  std::uint32_t* clusters_;
+  std::int32_t* pixel_;
+  float* threshold_;
+  float* contribution_;
+  std::uint32_t* slot_;
+  std::size_t capacity_;  // primitives (a multiple of kClusterSize)
+  std::size_t clusters_total_ = 0;
+  std::size_t clusters_kept_ = 0;
+  std::size_t entry_count_ = 0;
+};
+
+template <std::size_t Capacity, std::int32_t W = 160, std::int32_t H = 120>
+class CriterionScratch : public CriterionScratchView {
+ public:
+  static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
+  static_assert(Capacity > 0, "scratch needs a positive capacity");
+  CriterionScratch()
+      : CriterionScratchView(depth_buffer_, clusters_.data(), pixel_.data(), threshold_.data(),
+                             contribution_.data(), slot_.data(), kSlots) {}
+
+ private:
+  DepthBuffer<W, H> depth_buffer_;
+  std::array<std::uint32_t, kSlots / kClusterSize> clusters_{};
+  std::array<std::int32_t, kSlots> pixel_{};
+  std::array<float, kSlots> threshold_{};
+  std::array<float, kSlots> contribution_{};
+  std::array<std::uint32_t, kSlots> slot_{};
+};
+
+// Structure-of-arrays storage of the per-primitive terms, one entry per slot (slots in cluster order).
+struct CriterionArrays {
+  float* x;
+  float* y;
+  float* z;
+  float* nx;
+  float* ny;
+  float* nz;
+  float* s00;  // Sigma / scale, upper triangle
+  float* s01;
+  float* s02;
+  float* s11;
+  float* s12;
+  float* s22;
+  float* log2_wa;  // log2(det(Sigma / scale) * (pi r^2)^h)
+  float* h;
+  float* radius;
+  PrimitiveIndex* index;  // pool index of the slot
+  std::uint64_t* sort_keys;
+  ClusterBounds* clusters;
+};
+
+class CriterionModelView {
+ public:
+  CriterionModelView(const CriterionModelView&) = delete;
+  CriterionModelView& operator=(const CriterionModelView&) = delete;
+
+  // Recomputes every view-independent term from the pool's alive primitives. On error the cache is
+  // unchanged and rejected_index() names the primitive: kNonFiniteInput (NaN/Inf position, normal,
+  // radius, h or Sigma), kNotSpd (Sigma), kInvalidArgument (zero normal, negative radius, h outside
+  // [0, 1]); kPoolFull when the pool holds more alive primitives than this cache's capacity.
+  Status refresh(const PrimitivePoolView& pool);
+
+  // F(nu) into *F_out (unchanged on error). kNonFiniteInput / kInvalidArgument for a bad pose or
+  // intrinsics, kInvalidImage for zero-size intrinsics, kInvalidArgument when scratch is too small.
+  Status evaluate(const Viewpoint& view, const PinholeIntrinsics& intrinsics, CriterionScratchView& scratch,
+                  double* F_out) const;
+
+  // The pool indices of the primitives visible from view (front-facing, centre in the image, not
+  // occluded), in cluster order. Writes min(count, out.size()) indices and the full count into
+  // *count_out; kPoolFull when out was too small. Errors as evaluate(), *count_out = 0.
+  Status visible_primitives(const Viewpoint& view, const PinholeIntrinsics& intrinsics, CriterionScratchView& scratch,
+                            Span<PrimitiveIndex> out, std::size_t* count_out) const;
+
+  // The terms of one primitive from view, in double precision (slow: renders the whole view).
+  // kNotFound when index is not in the cache. Errors as evaluate().
+  Status primitive_terms(const Viewpoint& view, const PinholeIntrinsics& intrinsics, CriterionScratchView& scratch,
+                         PrimitiveIndex index, CriterionTerms* out) const;
+
+  std::size_t primitive_count() const { return count_; }
+  std::size_t cluster_count() const { return round_up_to_clusters(count_) / kClusterSize; }
+  std::size_t capacity() const { return capacity_; }
+  // Revision of the pool at the last successful refresh (PrimitivePoolView::revision()).
+  std::uint64_t pool_revision() const { return pool_revision_; }
+  bool refreshed() const { return refreshed_; }
+  PrimitiveIndex rejected_index() const { return rejected_index_; }
+  // Scale s with Sigma = s * Sigma' in the cache (largest mean variance of the model).
+  double variance_scale() const { return scale_; }
+
+  // Read-only access to the slots [0, primitive_count()) for other core algorithms (free mask).
+  const float* slot_x() const { return arrays_.x; }
+  const float* slot_y() const { return arrays_.y; }
+  const float* slot_z() const { return arrays_.z; }
+  const float* slot_radius() const { return arrays_.radius; }
+  const PrimitiveIndex* slot_index() const { return arrays_.index; }
+  const ClusterBounds& cluster(std::size_t c) const { return arrays_.clusters[c]; }
+
+ protected:
+  CriterionModelView(const CriterionArrays& arrays, std::size_t capacity) : arrays_(arrays), capacity_(capacity) {}
+  ~CriterionModelView() = default;
+
+ private:
+  struct ViewSetup;
+  Status prepare(const Viewpoint& view, const PinholeIntrinsics& intrinsics, CriterionScratchView& scratch,
+                 ViewSetup* setup) const;
+  // Culls, splats and fills the scratch entries; returns nothing (prepare validated everything).
+  void render(const ViewSetup& setup, CriterionScratchView& scratch) const;
+
+  CriterionArrays arrays_;
+  std::size_t capacity_;  // slots, a multiple of kClusterSize
+  std::size_t count_ = 0;
+  double scale_ = 1.0;
+  std::uint64_t pool_revision_ = 0;
+  PrimitiveIndex rejected_index_ = kInvalidPrimitive;
+  bool refreshed_ = false;
+};
+
+// Owner of the cache for up to Capacity primitives: about 72 bytes per primitive.
+template <std::size_t Capacity = kDefaultPrimitiveCapacity>
+class CriterionModel : public CriterionModelView {
+ public:
+  static_assert(Capacity > 0, "criterion model needs a positive capacity");
+  static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
+  CriterionModel() : CriterionModelView(make_arrays(), kSlots) {}
+
+ private:
+  CriterionArrays make_arrays() {
+    return CriterionArrays{x_.data(),   y_.data(),   z_.data(),   nx_.data(),      ny_.data(), nz_.data(),
+                           s00_.data(), s01_.data(), s02_.data(), s11_.data(),     s12_.data(), s22_.data(),
+                           lwa_.data(), h_.data(),   r_.data(),   index_.data(),   keys_.data(), clusters_.data()};
+  }
+  std::array<float, kSlots> x_{}, y_{}, z_{}, nx_{}, ny_{}, nz_{};
+  std::array<float, kSlots> s00_{}, s01_{}, s02_{}, s11_{}, s12_{}, s22_{};
+  std::array<float, kSlots> lwa_{}, h_{}, r_{};
+  std::array<PrimitiveIndex, kSlots> index_{};
+  std::array<std::uint64_t, kSlots> keys_{};
+  std::array<ClusterBounds, kSlots / kClusterSize> clusters_{};
+};
+
+}  // namespace vantage
