@@ -1,0 +1,219 @@
+#include "targets/onboard/mission.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "core/frontend/image_front_end.hpp"
+#include "core/planning/sensing_executive.hpp"
+#include "targets/onboard/onboard_grid.hpp"
+
+namespace vantage::onboard {
+namespace {
+
+using FrameBuffer = GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight>;
+
+// Static storage for the heap-free core (several MB): never on the stack, never on the heap.
+PrimitivePool<kDefaultPrimitiveCapacity> g_pool;
+ImageFrontEnd g_front_end;
+OnboardGrid g_grid;
+SensingExecutive g_executive(g_pool, g_front_end, g_grid, nullptr);
+FrameBuffer g_first_frame;
+FrameBuffer g_frame;
+
+struct MissionError {
+  int code;
+  std::string text;
+};
+
+class Rig {
+ public:
+  Rig(const OnboardConfig& config, hal::Camera& camera, const CameraReopen& reopen, hal::mavlink::MavlinkMotion& motion,
+      const hal::Clock& clock)
+      : config_(config), camera_(camera), reopen_(reopen), motion_(motion), clock_(clock) {}
+
+  // Commands the viewpoint and keeps the link serviced until the vehicle is there.
+  void move_to(const Viewpoint& view) {
+    const hal::MotionFault fault = motion_.command(view);
+    if (fault == hal::MotionFault::kLinkLost) throw MissionError{kExitVehicle, "vehicle: link lost: the vehicle was told to hold"};
+    if (fault != hal::MotionFault::kNone) throw MissionError{kExitMissionFailed, std::string("vehicle refused a viewpoint: ") + hal::to_string(fault)};
+    const std::int64_t deadline = clock_.now_ns() + static_cast<std::int64_t>(config_.mavlink.arrive_timeout_s * 1e9);
+    for (;;) {
+      motion_.update(0.02);
+      if (motion_.fault() == hal::MotionFault::kLinkLost) {
+        throw MissionError{kExitVehicle, "vehicle: link lost (no heartbeat for " +
+                                             std::to_string(config_.mavlink.motion.link_loss_timeout_s) +
+                                             " s): the vehicle was told to hold"};
+      }
+      if (motion_.arrived()) return;
+      if (clock_.now_ns() > deadline) throw MissionError{kExitVehicle, "vehicle: did not reach a viewpoint within arrive_timeout_s"};
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+
+  // A frame taken after arrival (older queued frames are dropped), into buffer.
+  GrayImageView grab(FrameBuffer& buffer, Viewpoint* pose) {
+    const std::int64_t arrived_ns = clock_.now_ns();
+    int failures = 0;
+    bool reopened = false;
+    for (int attempt = 0; attempt < 32; ++attempt) {
+      motion_.update(0.0);
+      MutableGrayImageView view = buffer.view();
+      view.width_px = FrameBuffer::kMaxWidth;  // capacity; grab() sets the frame's size
+      view.height_px = FrameBuffer::kMaxHeight;
+      view.stride_bytes = FrameBuffer::kMaxWidth;
+      hal::FrameInfo info;
+      const hal::CaptureStatus status = camera_.grab(view, info, config_.camera.timeout_ms);
+      if (status == hal::CaptureStatus::kOk) {
+        if (info.timestamp_ns < arrived_ns) continue;  // queued before we got here
+        (void)buffer.resize(view.width_px, view.height_px);
+        *pose = motion_.current_pose().pose;
+        return static_cast<const FrameBuffer&>(buffer).view();
+      }
+      if (status == hal::CaptureStatus::kDeviceLost && reopen_ && !reopened) {
+        reopened = true;
+        const std::string error = reopen_();
+        if (!error.empty()) throw MissionError{kExitCamera, "camera: lost and could not reopen: " + error};
+        continue;
+      }
+      if (status == hal::CaptureStatus::kTimeout || status == hal::CaptureStatus::kCorruptFrame) {
+        if (++failures < 3) continue;
+      }
+      throw MissionError{kExitCamera, std::string("camera: ") + camera_.name() + ": " + hal::to_string(status)};
+    }
+    throw MissionError{kExitCamera, std::string("camera: ") + camera_.name() + ": no frame newer than the arrival"};
+  }
+
+  void wait_for_vehicle() {
+    motion_.start();
+    for (;;) {
+      motion_.update(0.02);
+      if (motion_.link_up() && motion_.current_pose().valid) return;
+      if (motion_.fault() == hal::MotionFault::kLinkLost) {
+        throw MissionError{kExitVehicle, "vehicle: no heartbeat and pose within " +
+                                             std::to_string(config_.mavlink.motion.link_loss_timeout_s) + " s on " +
+                                             config_.mavlink.endpoint};
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+
+ private:
+  const OnboardConfig& config_;
+  hal::Camera& camera_;
+  const CameraReopen& reopen_;
+  hal::mavlink::MavlinkMotion& motion_;
+  const hal::Clock& clock_;
+};
+
+}  // namespace
+
+StaticFootprint static_footprint() {
+  return StaticFootprint{sizeof(g_pool), sizeof(g_front_end), sizeof(g_grid), sizeof(g_executive),
+                         sizeof(g_first_frame) + sizeof(g_frame)};
+}
+
+int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraReopen& reopen,
+                hal::mavlink::MavlinkMotion& motion, const hal::Clock& clock, std::string* summary) {
+  const MissionSettings& m = config.mission;
+  const PinholeIntrinsics& intrinsics = camera.intrinsics();
+  FrontEndConfig fc;
+  fc.depth_min = m.depth_min_m;
+  fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m
+                                      : std::sqrt(2.0) * 0.5 * m.grid.cells_per_side * m.grid.cell_size_m + 0.5 * m.viewing_distance_m;
+  if (!ok(g_front_end.configure(intrinsics, fc))) {
+    *summary = config.source + ": mission: the image front end rejects this camera or depth range";
+    return kExitConfig;
+  }
+  if (!ok(g_grid.configure(m.grid, intrinsics, m.keep_out_radius_m))) {
+    *summary = config.source + ": mission: the view grid rejects this geometry";
+    return kExitConfig;
+  }
+  g_pool.clear();
+  SensingConfig sc;
+  sc.rho_sigma = m.rho_sigma;
+  sc.eta_utility = m.eta_utility;
+  sc.max_images = m.max_images;
+  sc.split.epsilon_cells = m.split_epsilon_cells;
+  sc.orbit_radius_m = m.viewing_distance_m;
+  if (const char* field = sc.invalid_field()) {
+    *summary = config.source + ": mission: " + field + " out of range";
+    return kExitConfig;
+  }
+
+  Rig rig(config, camera, reopen, motion, clock);
+  try {
+    rig.wait_for_vehicle();
+    std::printf("vehicle: link up on %s\n", config.mavlink.endpoint.c_str());
+    // Two initial views one cell apart at the viewing distance, on the -y side (paper section VI).
+    const GridCell first_cell = m.grid.cell_of(m.grid.center_xy + Eigen::Vector2d(0.0, -m.viewing_distance_m));
+    const GridCell second_cell{first_cell.ix + 1, first_cell.iy};
+    if (!g_grid.is_free_initially(first_cell) || !g_grid.is_free_initially(second_cell)) {
+      *summary = config.source + ": mission: the initial views fall in the keep-out zone or off the grid";
+      return kExitConfig;
+    }
+    Viewpoint first_view, second_view;
+    if (!ok(g_grid.viewpoint(first_cell, &first_view)) || !ok(g_grid.viewpoint(second_cell, &second_view))) {
+      *summary = config.source + ": mission: no viewpoint for the initial cells";
+      return kExitConfig;
+    }
+    Viewpoint first_pose, second_pose;
+    rig.move_to(first_view);
+    const GrayImageView first = rig.grab(g_first_frame, &first_pose);
+    rig.move_to(second_view);
+    const GrayImageView second = rig.grab(g_frame, &second_pose);
+    const Status begun = g_executive.begin(sc, first, first_pose, second, second_pose);
+    if (!ok(begun)) {
+      *summary = std::string("mission: could not start from the initial images: ") + to_string(begun);
+      return kExitMissionFailed;
+    }
+    std::printf("mission: started from cells (%d,%d) and (%d,%d)\n", first_cell.ix, first_cell.iy, second_cell.ix,
+                second_cell.iy);
+    for (;;) {
+      const SensingAction action = g_executive.next();
+      if (action.kind == SensingActionKind::kDone || action.kind == SensingActionKind::kFailed) break;
+      switch (action.kind) {
+        case SensingActionKind::kEvaluateGrid: {
+          const Status evaluated = g_grid.evaluate(g_pool);
+          if (!ok(evaluated)) {
+            *summary = std::string("mission: grid evaluation failed: ") + to_string(evaluated);
+            return kExitMissionFailed;
+          }
+          g_executive.on_grid_evaluated();
+          break;
+        }
+        case SensingActionKind::kMoveTo:
+          rig.move_to(action.view);
+          g_executive.on_arrived(motion.current_pose().pose);
+          break;
+        case SensingActionKind::kCapture: {
+          rig.move_to(action.view);
+          Viewpoint pose;
+          const GrayImageView image = rig.grab(g_frame, &pose);
+          g_executive.on_image(image, pose);
+          std::printf("image %u/%u at cell (%d,%d): avg sigma %.5f, NBV iterations %u\n", g_executive.images(),
+                      m.max_images, action.cell.ix, action.cell.iy, g_executive.precision_level(),
+                      g_executive.nbv_iterations());
+          std::fflush(stdout);
+          break;
+        }
+        default:
+          break;
+      }
+    }
+  } catch (const MissionError& e) {
+    *summary = e.text;
+    return e.code;
+  }
+  const SensingAction last = g_executive.next();
+  if (last.kind == SensingActionKind::kDone) {
+    *summary = std::string("mission done: ") + to_string(last.done) + ", " + std::to_string(g_executive.images()) +
+               " images, " + std::to_string(g_executive.nbv_iterations()) + " NBV iterations";
+    return kExitDone;
+  }
+  *summary = std::string("mission failed: ") + last.reason + " (" + to_string(last.failure) + ")";
+  return kExitMissionFailed;
+}
+
+}  // namespace vantage::onboard

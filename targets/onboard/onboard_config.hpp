@@ -1,0 +1,62 @@
+#pragma once
+// vantage-onboard's configuration file (YAML). Every field has a default except where noted; a wrong
+// field is reported as "<file>: <field>: <problem>" and nothing runs. See README.md for a full example.
+#include <string>
+
+#include "core/grid/grid_geometry.hpp"
+#include "hal/mavlink/mavlink_motion.hpp"
+#include "hal/v4l2/gray_convert.hpp"
+
+namespace vantage::onboard {
+
+enum class CameraDriver { kV4l2, kLibcamera, kSim };
+const char* to_string(CameraDriver driver);
+
+struct CameraSettings {
+  CameraDriver driver = CameraDriver::kV4l2;
+  std::string device = "/dev/video0";  // v4l2
+  std::string camera_id;               // libcamera; empty = first camera
+  hal::PixelFormat format = hal::PixelFormat::kYuyv;
+  int width_px = 640;
+  int height_px = 480;
+  double frame_rate_hz = 30.0;
+  int buffers = 4;
+  int timeout_ms = 1000;        // one grab
+  std::string calibration;      // camera_info YAML (required for v4l2 and libcamera), relative to the config file
+  std::string scene;            // sim only: sim_hal scene TOML; empty = the paper's bunny
+};
+
+struct MavlinkSettings {
+  std::string endpoint = "udp:127.0.0.1:14540";  // udp:HOST:PORT or serial:PATH:BAUD
+  std::string signing_key_file;  // 64 hex digits (a 32-byte key); empty = unsigned
+  hal::mavlink::MavlinkMotionConfig motion;
+  double arrive_timeout_s = 60.0;  // one move
+};
+
+struct MissionSettings {
+  GridGeometry grid;                 // cells_per_side must be kOnboardGridSide
+  double viewing_distance_m = 40.0;  // the initial views: this far from the centre, on the -y side
+  double keep_out_radius_m = 0.0;    // grid cells within this radius of the centre are never entered
+  unsigned max_images = 60;
+  double rho_sigma = 0.008;
+  double eta_utility = 0.0;
+  double split_epsilon_cells = 0.75;
+  double depth_min_m = 1.0;          // the front end's epipolar search range
+  double depth_max_m = 0.0;          // 0: from the grid's extent
+};
+
+struct OnboardConfig {
+  std::string source;  // the file it came from
+  CameraSettings camera;
+  MavlinkSettings mavlink;
+  MissionSettings mission;
+};
+
+// Empty on success; else one line naming file and field.
+std::string load_onboard_config(const std::string& path, OnboardConfig* out);
+std::string parse_onboard_config(const std::string& yaml_text, const std::string& source, const std::string& base_dir,
+                                 OnboardConfig* out);
+// A signing key file: 64 hex digits (whitespace around them allowed).
+std::string load_signing_key(const std::string& path, hal::mavlink::SigningKey* key);
+
+}  // namespace vantage::onboard

@@ -1,0 +1,69 @@
+#include "targets/onboard/onboard_grid.hpp"
+
+#include <atomic>
+#include <thread>
+
+namespace vantage::onboard {
+
+Status OnboardGrid::configure(const GridGeometry& geometry, const PinholeIntrinsics& intrinsics, double keep_out_radius_m) {
+  if (geometry.cells_per_side != kOnboardGridSide) return Status::kInvalidArgument;
+  grid_.clear_blocked();
+  const Status s = grid_.configure(geometry, Eigen::Vector3d(geometry.center_xy.x(), geometry.center_xy.y(), 0.0));
+  if (!ok(s)) return s;
+  for (std::int32_t i = 0; i < geometry.cell_count(); ++i) {
+    const GridCell cell = geometry.cell_at(i);
+    if ((geometry.cell_center_xy(cell) - geometry.center_xy).norm() < keep_out_radius_m) (void)grid_.set_blocked(cell, true);
+  }
+  intrinsics_ = intrinsics;
+  return Status::kOk;
+}
+
+Status OnboardGrid::evaluate(const PrimitivePoolView& pool) {
+  Status s = model_.refresh(pool);
+  if (!ok(s)) return s;
+  s = grid_.update_free_mask(model_, kDefaultSafetyMargin);
+  if (!ok(s)) return s;
+  const std::int32_t rows = grid_.cells_per_side();
+  std::atomic<std::int32_t> next_row{0};
+  std::atomic<int> first_error{static_cast<int>(Status::kOk)};
+  auto worker = [&](int t) {
+    for (std::int32_t row = next_row++; row < rows; row = next_row++) {
+      const Status r = grid_.evaluate(model_, intrinsics_, row * rows, (row + 1) * rows, scratch_[t]);
+      if (!ok(r)) {
+        int expected = static_cast<int>(Status::kOk);
+        first_error.compare_exchange_strong(expected, static_cast<int>(r));
+      }
+    }
+  };
+  std::thread helper(worker, 1);
+  worker(0);
+  helper.join();
+  if (first_error.load() != static_cast<int>(Status::kOk)) return static_cast<Status>(first_error.load());
+  s = grid_.finalize();
+  // No free cell seeing a primitive, or no free cell at all: the executive decides what that means.
+  if (s == Status::kNotFound || s == Status::kNoFreeCell) return Status::kOk;
+  return s;
+}
+
+Status OnboardGrid::viewpoint(const GridCell& cell, Viewpoint* out) const {
+  if (!grid_.geometry().contains(cell) || !grid_.has_viewpoint(cell)) return Status::kNotFound;
+  *out = grid_.viewpoint(cell);
+  return Status::kOk;
+}
+
+std::size_t OnboardGrid::visible_primitives(const Viewpoint& view, const PrimitivePoolView& pool, Span<PrimitiveIndex> out) {
+  if (model_.pool_revision() != pool.revision() || !model_.refreshed()) {
+    if (!ok(model_.refresh(pool))) return 0;
+  }
+  std::size_t count = 0;
+  const Status s = model_.visible_primitives(view, intrinsics_, scratch_[0], out, &count);
+  if (!ok(s) && s != Status::kPoolFull) return 0;
+  return count < out.size() ? count : out.size();
+}
+
+void OnboardGrid::refresh_free_cells(const PrimitivePoolView& pool) {
+  if (!ok(model_.refresh(pool))) return;
+  (void)grid_.update_free_mask(model_, kDefaultSafetyMargin);
+}
+
+}  // namespace vantage::onboard
