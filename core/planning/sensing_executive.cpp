@@ -153,19 +153,37 @@ void SensingExecutive::on_grid_evaluated() {
   replan_now();
 }
 
+GridMapView SensingExecutive::planning_map(std::int32_t* free_count) {
+  GridMapView map = grid_.map();
+  std::int32_t count = 0;
+  if (map.free != nullptr && map.geometry.cells_per_side > 0 && map.geometry.cells_per_side <= kMaxPlanningGridSide) {
+    const std::int32_t n = map.geometry.cell_count();
+    for (std::int32_t i = 0; i < n; ++i) {
+      free_copy_[i] = map.free[i];
+      count += map.free[i] != 0 ? 1 : 0;
+    }
+    if (map.geometry.contains(current_)) free_copy_[map.geometry.flat_index(current_)] = 1;
+    map.free = free_copy_;
+  }
+  if (free_count != nullptr) *free_count = count;
+  return map;
+}
+
 void SensingExecutive::replan_now() {
-  const GridMapView map = grid_.map();
-  if (map.free == nullptr || map.geometry.cells_per_side <= 0 || map.geometry.cells_per_side > kMaxPlanningGridSide ||
-      (policy_uses_criterion(config_.policy) && map.cost == nullptr)) {
+  const GridMapView raw = grid_.map();
+  if (raw.free == nullptr || raw.geometry.cells_per_side <= 0 || raw.geometry.cells_per_side > kMaxPlanningGridSide ||
+      (policy_uses_criterion(config_.policy) && raw.cost == nullptr)) {
     fail(Status::kInvalidArgument, "the grid map is missing or larger than the planner supports");
     return;
   }
-  if (!locate(pose_, map, &current_)) {
+  if (!locate(pose_, raw, &current_)) {
     fail(Status::kInvalidArgument, "the robot is outside the grid");
     return;
   }
-  if (!map.is_free(current_)) {
-    fail(Status::kNoFreeCell, "the robot's cell is not free");
+  std::int32_t free_count = 0;
+  const GridMapView map = planning_map(&free_count);
+  if (free_count == 0) {
+    fail(Status::kNoFreeCell, "no free cell in the grid");
     return;
   }
   GridCell goal{};
@@ -313,7 +331,7 @@ void SensingExecutive::advance() {
     request_replan(ReplanReason::kPathEnd);
     return;
   }
-  const GridMapView map = grid_.map();
+  const GridMapView map = planning_map();
   if (segment_size_ == 0) {
     // PathQry to the next waypoint: the motion follows it cell by cell.
     const GridCell target = plan_[plan_pos_];
@@ -408,7 +426,7 @@ void SensingExecutive::on_image(const GrayImageView& image, const Viewpoint& pos
         request_replan(ReplanReason::kUtility);
         return;
       }
-      const GridMapView map = grid_.map();
+      const GridMapView map = planning_map();
       if (!ok(query_.find(map, current_, nbv_))) {
         request_replan(ReplanReason::kPathBlocked);
         return;

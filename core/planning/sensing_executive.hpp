@@ -24,6 +24,10 @@
 // FALSE (an empty set S at some level, e.g. both ends hugging a thin wall) although PathQry connects the
 // ends: the executive falls back to the PathQry cells as waypoints and counts it (split_fallback_count()).
 //
+// The robot's own cell counts as free even when the grid marks it otherwise: the robot stands there, so
+// a mark there comes from model error (e.g. a badly triangulated primitive near the camera). A grid
+// with no free cell at all still fails with kNoFreeCell.
+//
 // U(M_nu*, M) = sum over the primitives visible from nu* (at PredictModel time) of det(Sigma_now) -
 // det(Sigma_predicted). Both dets come from the same primitive index; primitives erased since then are
 // left out of the sum.
@@ -140,6 +144,9 @@ class SensingExecutive {
   // Issues the move or capture toward plan_[plan_pos_], or a replan at the end of the plan.
   void advance();
   void issue_capture();
+  // The grid's map with the robot's own cell marked free (see the file comment); *free_count gets the
+  // number of free cells the grid itself reports.
+  GridMapView planning_map(std::int32_t* free_count = nullptr);
 
   PrimitivePoolView& pool_;
   MeasurementSource& measurement_;
@@ -157,6 +164,8 @@ class SensingExecutive {
   GridCell segment_[kMaxPlanningGridCells];  // PathQry cells from the last waypoint to plan_[plan_pos_]
   std::size_t segment_size_ = 0;
   std::size_t segment_pos_ = 0;               // index of the cell being approached
+
+  std::uint8_t free_copy_[kMaxPlanningGridCells];
 
   PrimitiveIndex predicted_index_[kMaxPredictedPrimitives];
   double predicted_det_[kMaxPredictedPrimitives];

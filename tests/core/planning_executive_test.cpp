@@ -233,3 +233,13 @@ TEST_CASE("ExecuteSensing: whole planner steps run without allocation") {
   CHECK(f.exec->nbv_iterations() >= 2u);
   CHECK(f.exec->next().kind == SensingActionKind::kDone);
 }
+
+TEST_CASE("ExecuteSensing: the robot's own cell marked non-free by the model still plans") {
+  Fixture f;
+  f.grid.map_data.set_free(f.start_cell, false);  // e.g. a badly triangulated primitive near the camera
+  f.config.eta_utility = -1.0;
+  REQUIRE(f.begin() == Status::kOk);
+  f.exec->on_grid_evaluated();
+  REQUIRE(f.exec->next().kind == SensingActionKind::kMoveTo);
+  CHECK(f.exec->nbv_cell() == GridCell{18, 10});
+}

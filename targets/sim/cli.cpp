@@ -1,0 +1,155 @@
+#include "targets/sim/cli.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <unistd.h>
+
+#include "core/planning/planner_policy.hpp"
+#include "sim_hal/scene/scene_config.hpp"
+#include "sim_hal/sim_error.hpp"
+#include "targets/sim/mission.hpp"
+#include "targets/sim/report.hpp"
+
+namespace vantage::simtarget {
+
+namespace {
+
+int exit_code(const MissionSummary& s) { return s.reached_goal ? 0 : (s.failed ? 3 : 2); }
+
+std::string compare_table(const std::vector<MissionSummary>& runs) {
+  std::ostringstream out;
+  char line[512];
+  std::snprintf(line, sizeof line, "%-9s %-8s %7s %9s %11s %9s %10s %12s %14s  %s\n", "planner", "goal", "images",
+                "NBV iter", "path", "coverage", "avg sigma", "accuracy", "plan s/iter", "end");
+  out << line;
+  for (const MissionSummary& s : runs) {
+    const double per_iteration = s.nbv_iterations > 0 ? s.planning_seconds / s.nbv_iterations : 0.0;
+    std::snprintf(line, sizeof line, "%-9s %-8s %7u %9u %11.1f %8.1f%% %10.5f %12.5f %14.3f  %s\n", s.planner.c_str(),
+                  s.reached_goal ? "reached" : "no", s.images, s.nbv_iterations, s.path_length, 100.0 * s.coverage,
+                  s.mean_sigma, s.accuracy_rms, per_iteration, s.end_reason.c_str());
+    out << line;
+  }
+  return out.str();
+}
+
+}  // namespace
+
+int run_cli(int argc, const char* const* argv) {
+  CLI::App app{"vantage-sim: next-best-view sensing strategy in simulation (Dunn, van den Berg, Frahm, IROS 2009)"};
+  std::string scene_file, mesh_path, planner_name = "nbv", out_dir, measurement = "image";
+  bool compare = false, quiet = false;
+  MissionOptions options;
+  app.add_option("--scene", scene_file, "TOML scene file (sim_hal/scenes/bunny.toml documents the fields)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--mesh", mesh_path, "mesh file (any format assimp reads); overrides the scene's mesh");
+  app.add_option("--planner", planner_name, "nbv (ours), reactive, direct, orbit or random")
+      ->check(CLI::IsMember({"nbv", "reactive", "direct", "orbit", "random"}));
+  app.add_flag("--compare", compare, "run every planner on the same scene and seed and print one table");
+  app.add_option("--out", out_dir, "write the report (figures, PLY, summary.json) into this folder");
+  app.add_option("--budget", options.budget, "image budget, the two initial images included")
+      ->check(CLI::Range(3u, 100000u));
+  app.add_option("--measurement", measurement, "image (the image front end) or oracle (ground-truth matches)")
+      ->check(CLI::IsMember({"image", "oracle"}));
+  app.add_option("--seed", options.seed, "seed of the scene noise, the oracle and the random planner");
+  app.add_option("--coverage-target", options.coverage_target, "stop at this ground-truth coverage")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--sigma-target", options.sigma_target, "stop when the average sigma is below this (rho)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--eta", options.eta_utility, "replan when the utility U falls below this");
+  app.add_option("--epsilon", options.split_epsilon_cells, "SplitPath band half-width and halting distance, cells")
+      ->check(CLI::Range(0.5, 1000.0));
+  app.add_flag("--capture-on-segments", options.capture_on_segments,
+               "also sense at the intermediate cells of the PathQry segments between waypoints");
+  app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
+      ->check(CLI::Range(100u, 1000000u));
+  std::size_t gt_samples = 50000;
+  app.add_option("--gt-samples", gt_samples, "ground-truth surface samples (coverage and the visible set)")
+      ->check(CLI::Range(100u, 10000000u));
+  app.add_flag("--model-free-mask", options.model_free_mask,
+               "also treat cells under the model's primitives as occupied (paths may get blocked mid-way)");
+  app.add_flag("--quiet", quiet, "no live progress line");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 1;
+  }
+  options.live = !quiet && isatty(fileno(stderr));
+  options.measurement = measurement == "oracle" ? MeasurementKind::kOracle : MeasurementKind::kImage;
+  if (!parse_planner_policy(planner_name.c_str(), &options.planner)) {
+    std::cerr << "vantage-sim: --planner " << planner_name << ": unknown planner\n";
+    return 1;
+  }
+
+  try {
+    sim::SceneConfig scene = scene_file.empty() ? sim::SceneConfig::paper_defaults() : sim::load_scene_config(scene_file);
+    if (!mesh_path.empty()) {
+      scene.mesh_path = mesh_path;
+      scene.source += " + --mesh " + mesh_path;
+    }
+    options.scene_name = scene_file.empty() ? "paper bunny (defaults), mesh " + scene.mesh_path
+                                            : scene_file + ", mesh " + scene.mesh_path;
+    // The report folder must be writable before any work is done.
+    std::vector<PlannerPolicy> planners;
+    if (compare) {
+      for (const PlannerPolicy p : kAllPlannerPolicies) planners.push_back(p);
+    } else {
+      planners.push_back(options.planner);
+    }
+    if (!out_dir.empty()) {
+      for (const PlannerPolicy p : planners) {
+        const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
+        std::string error;
+        if (!prepare_output_dir(dir, &error)) {
+          std::cerr << "vantage-sim: " << error << "\n";
+          return 1;
+        }
+      }
+    }
+    std::cerr << "vantage-sim: loading " << scene.mesh_path << " and computing the ground truth ...\n";
+    const SimSetup setup = build_setup(scene, options.seed, gt_samples);
+    std::vector<MissionSummary> runs;
+    for (const PlannerPolicy p : planners) {
+      options.planner = p;
+      MissionTrace trace;
+      const MissionSummary summary = run_mission(setup, options, &trace);
+      runs.push_back(summary);
+      std::cout << to_string(p) << ": " << (summary.reached_goal ? "goals reached" : summary.end_reason) << " after "
+                << summary.images << " images, " << summary.nbv_iterations << " NBV iterations, path "
+                << summary.path_length << ", coverage " << 100.0 * summary.coverage << "%, avg sigma "
+                << summary.mean_sigma << ", accuracy rms " << summary.accuracy_rms << ", planning "
+                << summary.planning_seconds << " s, wall " << summary.wall_seconds << " s\n";
+      if (!out_dir.empty()) {
+        const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
+        std::string error;
+        if (!write_report(dir, trace, summary, mission_pool(), setup.scene.intrinsics, setup.scene.viewing_distance,
+                          &error)) {
+          std::cerr << "vantage-sim: report: " << error << "\n";
+        } else {
+          std::cout << "report written to " << dir << "\n";
+        }
+      }
+    }
+    if (compare) {
+      const std::string table = compare_table(runs);
+      std::cout << "\n" << table;
+      if (!out_dir.empty()) {
+        std::ofstream(std::filesystem::path(out_dir) / "compare.txt") << table;
+      }
+      for (const MissionSummary& s : runs) {
+        if (s.failed) return 3;
+      }
+      return 0;
+    }
+    return exit_code(runs.front());
+  } catch (const sim::SimError& e) {
+    std::cerr << "vantage-sim: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace vantage::simtarget

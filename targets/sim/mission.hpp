@@ -1,0 +1,52 @@
+#pragma once
+// One simulated mission: the sim_hal world, camera and robot, a measurement source (image front end or
+// oracle), the view grid evaluated on two threads, and core's SensingExecutive stepping them. This file
+// only wires; every planning decision is made in core/planning.
+#include <memory>
+#include <string>
+
+#include "core/planning/planner_policy.hpp"
+#include "sim_hal/ground_truth/ground_truth.hpp"
+#include "sim_hal/scene/scene_config.hpp"
+#include "sim_hal/world/sim_world.hpp"
+#include "targets/sim/mission_trace.hpp"
+
+namespace vantage::simtarget {
+
+enum class MeasurementKind { kImage, kOracle };
+
+struct MissionOptions {
+  std::string scene_name = "paper bunny (defaults)";
+  PlannerPolicy planner = PlannerPolicy::kNbv;
+  MeasurementKind measurement = MeasurementKind::kImage;
+  std::uint32_t budget = 600;          // images, the two initial ones included
+  std::uint64_t seed = 1;
+  double coverage_target = 0.99;       // ground truth coverage of the visible area
+  double sigma_target = 0.008;         // PrecisionLevel goal rho, units
+  double eta_utility = 0.0;
+  double split_epsilon_cells = 0.75;
+  bool capture_on_segments = false;
+  std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
+  std::size_t oracle_sites = 70000;
+  bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
+  bool live = true;                    // live progress line on stderr
+};
+
+// The world and its ground truth, built once and shared by the runs of --compare.
+struct SimSetup {
+  sim::SceneConfig scene;
+  std::unique_ptr<sim::SimWorld> world;
+  std::unique_ptr<sim::GroundTruth> ground_truth;
+};
+
+// Throws sim::SimError for a bad scene or mesh.
+SimSetup build_setup(const sim::SceneConfig& scene, std::uint64_t seed, std::size_t ground_truth_samples = 50000);
+
+// Runs a mission; the final model stays in mission_pool() until the next run. Throws sim::SimError
+// for simulator errors; planner failures end the mission with summary.failed set.
+MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options, MissionTrace* trace);
+
+const PrimitivePoolView& mission_pool();
+const char* to_string(MeasurementKind kind);
+
+}  // namespace vantage::simtarget

@@ -1,0 +1,69 @@
+#pragma once
+// What a mission records for its progress line, its comparison row and its report. Plain data filled
+// by the mission loop (targets/sim/mission.cpp); no planning logic here.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/grid/grid_geometry.hpp"
+#include "core/planning/sensing_executive.hpp"
+
+namespace vantage::simtarget {
+
+struct ImageRecord {
+  std::uint32_t image = 0;          // images taken so far, this one included
+  std::uint32_t nbv_iteration = 0;  // the plan this image belongs to
+  double average_sigma = 0.0;       // PrecisionLevel after the update
+  double utility = 0.0;             // U(M_nu*, M) after the update
+  double coverage = -1.0;           // ground truth coverage when evaluated for this image, else < 0
+  GridCell cell{};
+};
+
+struct ReplanRecord {
+  std::uint32_t at_image = 0;       // images taken when the plan was renewed
+  ReplanReason reason = ReplanReason::kNone;
+  GridCell nbv{};
+  double utility_after = 0.0;       // U right after PredictModel
+};
+
+struct MissionTrace {
+  GridGeometry geometry;
+  std::vector<std::uint8_t> free;         // the planner's free mask at the end
+  std::vector<float> first_cost;          // cost after the first grid evaluation
+  std::vector<float> final_cost;          // cost after the last grid evaluation
+  std::vector<GridCell> initial_cells;    // cells of the two initial views
+  std::vector<GridCell> path;             // executed cells in order, the start cell first
+  std::vector<ImageRecord> images;
+  std::vector<ReplanRecord> replans;
+};
+
+struct MissionSummary {
+  std::string scene;
+  std::string planner;
+  std::string measurement;
+  std::uint32_t images = 0;
+  std::uint32_t nbv_iterations = 0;
+  double path_length = 0.0;               // scene units
+  double coverage = 0.0;                  // ground truth, [0, 1]
+  double mean_sigma = 0.0;                // PrecisionLevel, units
+  double accuracy_rms = 0.0;              // ground truth, units
+  double accuracy_p95 = 0.0;
+  std::size_t primitives = 0;
+  bool reached_goal = false;
+  std::string end_reason;                 // done reason or failure text
+  bool failed = false;
+  double planning_seconds = 0.0;          // grid evaluations + planning steps
+  double measurement_seconds = 0.0;       // model updates
+  double render_seconds = 0.0;            // ray casting
+  double wall_seconds = 0.0;
+  std::uint32_t grid_evaluations = 0;
+  std::uint32_t rejected_images = 0;
+  std::uint32_t unreachable_nbv = 0;
+  std::uint32_t split_fallbacks = 0;
+  double coverage_target = 0.99;
+  double sigma_target = 0.008;
+  std::uint32_t budget = 0;
+  std::uint64_t seed = 0;
+};
+
+}  // namespace vantage::simtarget
