@@ -1,0 +1,108 @@
+// vantage-onboard's YAML configuration: defaults, every section, and one-line errors naming the field.
+#include <catch2/catch.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "targets/onboard/onboard_config.hpp"
+
+using namespace vantage;
+using namespace vantage::onboard;
+
+namespace {
+
+std::string error_for(const std::string& yaml) {
+  OnboardConfig config;
+  config.mavlink.endpoint = "untouched";
+  const std::string error = parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &config);
+  CHECK(config.mavlink.endpoint == "untouched");
+  return error;
+}
+
+}  // namespace
+
+TEST_CASE("a full onboard configuration is read", "[onboard]") {
+  const std::string yaml = R"(
+camera:
+  driver: v4l2
+  device: /dev/video2
+  format: NV12
+  width: 1280
+  height: 720
+  frame_rate_hz: 15
+  buffers: 6
+  calibration: cam.yaml
+mavlink:
+  endpoint: serial:/dev/ttyAMA0:921600
+  signing_key_file: /secrets/key.hex
+  link_id: 7
+  link_loss_timeout_s: 2.5
+  world_origin_ned: [1, 2, -3]
+mission:
+  cell_size_m: 0.5
+  elevation_m: 2
+  center_xy: [4, 5]
+  viewing_distance_m: 10
+  keep_out_radius_m: 3
+  max_images: 120
+)";
+  OnboardConfig c;
+  REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
+  CHECK(c.camera.driver == CameraDriver::kV4l2);
+  CHECK(c.camera.device == "/dev/video2");
+  CHECK(c.camera.format == hal::PixelFormat::kNv12);
+  CHECK(c.camera.width_px == 1280);
+  CHECK(c.camera.buffers == 6);
+  CHECK(c.camera.calibration == "/etc/vantage/cam.yaml");
+  CHECK(c.mavlink.endpoint == "serial:/dev/ttyAMA0:921600");
+  CHECK(c.mavlink.signing_key_file == "/secrets/key.hex");
+  CHECK(c.mavlink.motion.signing_link_id == 7);
+  CHECK(c.mavlink.motion.link_loss_timeout_s == 2.5);
+  CHECK(c.mavlink.motion.frame.world_origin_ned == Eigen::Vector3d(1, 2, -3));
+  CHECK(c.mission.grid.cell_size_m == 0.5);
+  CHECK(c.mission.grid.center_xy == Eigen::Vector2d(4, 5));
+  CHECK(c.mission.keep_out_radius_m == 3);
+  CHECK(c.mission.max_images == 120u);
+}
+
+TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
+  CHECK(error_for("camera:\n  driver: usb\n") == "onboard.yaml: camera.driver: 'usb' is not v4l2, libcamera or sim");
+  CHECK(error_for("camera:\n  driver: v4l2\n") ==
+        "onboard.yaml: camera.calibration: required for a real camera (a camera_info YAML file)");
+  CHECK(error_for("camera:\n  driver: sim\n  format: RGGB\n") ==
+        "onboard.yaml: camera.format: 'RGGB' is not GREY, YUYV, UYVY, NV12, RGB3, BGR3, XR24 or MJPG");
+  CHECK(error_for("camera:\n  driver: sim\n  width: 4000\n") == "onboard.yaml: camera.width: 4000 is outside [16, 1280]");
+  CHECK(error_for("camera:\n  driver: sim\n  buffers: two\n") == "onboard.yaml: camera.buffers: must be a number");
+  CHECK(error_for("camera:\n  driver: sim\n  colour: red\n") == "onboard.yaml: camera.colour: unknown field");
+  CHECK(error_for("camera:\n  driver: sim\nmavlink:\n  endpoint: udp:localhost\n")
+            .find("onboard.yaml: mavlink.endpoint: endpoint 'udp:localhost'") == 0);
+  CHECK(error_for("camera:\n  driver: sim\nmavlink:\n  heartbeat_period_s: 4\n  link_loss_timeout_s: 3\n") ==
+        "onboard.yaml: mavlink: link_loss_timeout_s must exceed heartbeat_period_s and be at most 60");
+  CHECK(error_for("camera:\n  driver: sim\nmavlink:\n  world_origin_ned: [1, 2]\n") ==
+        "onboard.yaml: mavlink.world_origin_ned: must be a list of 3 numbers");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  cells_per_side: 40\n").find("onboard.yaml: mission.cells_per_side: this build holds a 60x60") == 0);
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  viewing_distance_m: 70\n") ==
+        "onboard.yaml: mission.viewing_distance_m: the initial views would lie outside the grid");
+  CHECK(error_for("camera: [unclosed\n").find("onboard.yaml: line ") == 0);
+  CHECK(error_for("robot: {}\n") == "onboard.yaml: robot: unknown section");
+}
+
+TEST_CASE("signing key files must hold 64 hex digits", "[onboard]") {
+  const std::string good = "vantage_onboard_test_key.hex";
+  {
+    std::ofstream f(good);
+    f << "000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1F\n";
+  }
+  hal::mavlink::SigningKey key{};
+  REQUIRE(load_signing_key(good, &key) == "");
+  CHECK(key[1] == 1);
+  CHECK(key[31] == 0x1F);
+  {
+    std::ofstream f(good);
+    f << "0001";
+  }
+  CHECK(load_signing_key(good, &key) == good + ": must hold exactly 64 hex digits (a 32-byte key)");
+  std::remove(good.c_str());
+  CHECK(load_signing_key("/nonexistent.hex", &key) == "/nonexistent.hex: cannot open the signing key file");
+}

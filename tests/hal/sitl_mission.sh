@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# SITL on loopback: vantage-onboard (camera: sim, rendering at the pose the vehicle reports) flies a short
+# NBV mission against the node-mavlink vehicle peer over UDP on 127.0.0.1.
+# usage: sitl_mission.sh <vantage-onboard> <node> <peer-dir> <work-dir> [max-images]
+set -euo pipefail
+onboard=$1 node=$2 peer_dir=$3 work=$4 images=${5:-8}
+[ -f "$peer_dir/node_modules/node-mavlink/package.json" ] || { echo "FAIL: run tests/mavlink_peer/install.sh"; exit 1; }
+mkdir -p "$work"
+peer_out="$work/peer.out"
+# The peer starts off the first view (NED x=-35 north, y=3 east, z=0) and flies at 20 units/s.
+"$node" "$peer_dir/peer.js" --duration-s 58 --speed-mps 20 --start-ned -35,3,0 </dev/null >"$peer_out" 2>&1 &
+peer_pid=$!
+trap 'kill "$peer_pid" 2>/dev/null || true; wait "$peer_pid" 2>/dev/null || true' EXIT
+port=""
+for _ in $(seq 100); do
+  port=$(sed -n 's/^PORT //p' "$peer_out")
+  [ -n "$port" ] && break
+  sleep 0.1
+done
+[ -n "$port" ] || { echo "FAIL: the peer printed no port"; cat "$peer_out"; exit 1; }
+cat > "$work/onboard.yaml" <<EOF
+camera:
+  driver: sim
+mavlink:
+  endpoint: udp:127.0.0.1:$port
+  arrive_timeout_s: 20
+  link_loss_timeout_s: 3
+mission:
+  max_images: $images
+EOF
+set +e
+timeout 55 "$onboard" "$work/onboard.yaml" >"$work/onboard.out" 2>&1
+rc=$?
+set -e
+cat "$work/onboard.out"
+fail() { echo "FAIL: $*"; echo "--- peer (last lines)"; tail -5 "$peer_out"; exit 1; }
+[ "$rc" -eq 0 ] || fail "vantage-onboard exited with $rc"
+grep -q '^mission done' "$work/onboard.out" || fail "no 'mission done' line"
+captured=$(grep -c '^image ' "$work/onboard.out" || true)
+[ "$captured" -ge $((images - 2)) ] || fail "only $captured images after the initial two"
+grep -q '"msg":"SET_POSITION_TARGET_LOCAL_NED"' "$peer_out" || fail "the peer saw no setpoint"
+echo "PASS: SITL mission with $captured images over MAVLink on 127.0.0.1:$port"
