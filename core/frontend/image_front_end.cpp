@@ -30,18 +30,27 @@ double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace(
 
 }  // namespace
 
+Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
+  if (!config_.adaptive_R || !fit_covariance_px2.allFinite()) return config_.ekf.R_px2;
+  const double floor = config_.match_sigma_floor_px * config_.match_sigma_floor_px;
+  return fit_covariance_px2 + floor * Eigen::Matrix2d::Identity();
+}
+
 Status FrontEndConfig::validate() const {
-  const double values[] = {min_texture_stddev_gray, ncc_min, uniqueness_ratio, depth_min, depth_max,
+  const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, uniqueness_ratio, depth_min, depth_max,
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
-                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas};
+                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
   const Status ekf_status = ekf.validate();
   if (!ok(ekf_status)) return ekf_status;
   if (seed_stride_px < kFrontEndMinSeedStride || seed_stride_px > 64) return Status::kInvalidArgument;
-  if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f)) return Status::kInvalidArgument;
+  if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f) ||
+      !(spawn_ncc_min > 0.0f && spawn_ncc_min < 1.0f)) {
+    return Status::kInvalidArgument;
+  }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
   if (subpixel_iterations < 0 || subpixel_iterations > 20) return Status::kInvalidArgument;
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
@@ -53,7 +62,7 @@ Status FrontEndConfig::validate() const {
   if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
     return Status::kInvalidArgument;
   }
-  if (!(occlusion_sigmas >= 0.0)) return Status::kInvalidArgument;
+  if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_px)) return Status::kInvalidArgument;
   if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
       !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
     return Status::kInvalidArgument;
@@ -287,6 +296,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;
     Eigen::Vector2d observed = predicted;
+    Eigen::Matrix2d fit_covariance = Eigen::Matrix2d::Zero();
     if (tmpl.valid_count >= kPatchPixels / 2) {
       const Eigen::Matrix2d S = H * p.Sigma_world * H.transpose() + config_.ekf.R_px2;
       WindowQuery query;
@@ -299,7 +309,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
       query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
       float best = 0.0f;
-      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best);
+      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
@@ -307,7 +317,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       continue;
     }
     ++report.matched;
-    const Status updated = ekf_update(p, observed, view, intrinsics_, config_.ekf, &stats_.ekf);
+    EkfConfig ekf = config_.ekf;
+    ekf.R_px2 = measurement_R(fit_covariance);
+    const Status updated = ekf_update(p, observed, view, intrinsics_, ekf, &stats_.ekf);
     if (ok(updated)) {
       ++report.updated;
       p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
@@ -407,7 +419,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
                           PrimitivePoolView& pool, UpdateReport& report) {
   const double focal = focal_mean(intrinsics_);
   const std::int32_t stride = config_.seed_stride_px;
-  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
+  const MatchConfig match{config_.spawn_ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> ncc_scratch(epipolar_ncc_.data(), epipolar_ncc_.size());
   const Span<std::int32_t> xy_scratch(epipolar_xy_.data(), epipolar_xy_.size());
   const Eigen::Matrix3d R_cam_world = reference_view.R_world_cam.transpose();
@@ -419,7 +431,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
   TwoViewObservation observation;
   observation.view_a = reference_view;
   observation.view_b = other_view;
-  observation.R_a_px2 = config_.ekf.R_px2;
+  const double floor = config_.match_sigma_floor_px * config_.match_sigma_floor_px;
+  observation.R_a_px2 = config_.adaptive_R ? Eigen::Matrix2d(floor * Eigen::Matrix2d::Identity()) : config_.ekf.R_px2;
   observation.R_b_px2 = config_.ekf.R_px2;
   bool pool_full = false;
   for (std::int32_t cy = 0; cy < cells_y_ && !pool_full; ++cy) {
@@ -438,13 +451,15 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       query.uv_first_px = Eigen::Vector2d(sx, sy);
       Eigen::Vector2d matched_px;
       float best = 0.0f;
-      if (search_epipolar(other, tmpl, query, intrinsics_, match, ncc_scratch, xy_scratch, &matched_px, &best) !=
-          MatchOutcome::kMatched) {
+      Eigen::Matrix2d fit_covariance;
+      if (search_epipolar(other, tmpl, query, intrinsics_, match, ncc_scratch, xy_scratch, &matched_px, &best,
+                          &fit_covariance) != MatchOutcome::kMatched) {
         continue;
       }
       ++stats_.seeds_matched;
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
+      observation.R_b_px2 = measurement_R(fit_covariance);
       if (!ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world)) ||
           sigma_bound(p.Sigma_world) > config_.max_initial_sigma) {
         ++stats_.seeds_rejected_triangulation;

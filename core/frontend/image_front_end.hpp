@@ -44,6 +44,8 @@ struct FrontEndConfig {
   float min_texture_stddev_gray = 6.0f;
   // Matching: NCC threshold, uniqueness ratio, cap of the 3-sigma search window (px each side).
   float ncc_min = 0.8f;
+  // New primitives have no prior to gate a wrong match: they need a stronger NCC peak.
+  float spawn_ncc_min = 0.9f;
   float uniqueness_ratio = 0.95f;
   std::int32_t max_search_half_window_px = 12;
   // Gauss-Newton steps of the photometric subpixel refinement after the parabola fit (0: parabola only).
@@ -52,9 +54,15 @@ struct FrontEndConfig {
   // defaults suit the paper's scene (object at the origin seen from 40 units).
   double depth_min = 25.0;
   double depth_max = 55.0;
-  // Image measurement covariance R (px^2) and the Mahalanobis gate of the EKF; R also weighs both
-  // observations of a triangulation.
+  // The Mahalanobis gate of the EKF, and the fixed image measurement covariance R (px^2). R sizes the
+  // search windows; it is also each match's R when adaptive_R is off.
   EkfConfig ekf;
+  // adaptive_R: each match's R is the least-squares covariance of its photometric subpixel fit (residual
+  // variance times the shift block of (J^T J)^-1) plus match_sigma_floor_px^2 I for what the fit does not
+  // see (interpolation, warp and lattice effects). The seed pixel of a new primitive defines the point it
+  // stands for, so its own observation gets the floor alone.
+  bool adaptive_R = true;
+  double match_sigma_floor_px = 0.05;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
@@ -141,6 +149,8 @@ class ImageFrontEnd final : public MeasurementSource {
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
              const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
   void remember(const GrayImageView& image, const Viewpoint& view);
+  // R of one match from its fit covariance (see FrontEndConfig::adaptive_R).
+  Eigen::Matrix2d measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const;
 
   PinholeIntrinsics intrinsics_;
   FrontEndConfig config_;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include <Eigen/Cholesky>
 
@@ -19,7 +20,7 @@ Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left,
 }  // namespace
 
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
-                     int iterations, Eigen::Vector2d* uv_px) {
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2) {
   // Block of image values around the peak: the patch, +-1 px of shift, one more for the bilinear cell and
   // one for the central-difference gradient.
   constexpr int kMargin = 3;
@@ -49,6 +50,7 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
     }
     beta = sum / tmpl.valid_count;
   }
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
   for (int iteration = 0; iteration < iterations; ++iteration) {
     const int ix = static_cast<int>(std::floor(d.x()));
     const int iy = static_cast<int>(std::floor(d.y()));
@@ -60,7 +62,7 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
     const float w11 = fx * fy;
     // Upper triangle of J^T J and J^T r as scalars (J = [gx, gy, -t, -1]): this loop is the tracker's hot path.
     double s_xx = 0, s_xy = 0, s_xt = 0, s_x = 0, s_yy = 0, s_yt = 0, s_y = 0, s_tt = 0, s_t = 0, s_1 = 0;
-    double r_x = 0, r_y = 0, r_t = 0, r_1 = 0;
+    double r_x = 0, r_y = 0, r_t = 0, r_1 = 0, r_r = 0;
     for (int ty = 0; ty < kPatchSize; ++ty) {
       const int j = ty + kMargin + iy;
       for (int tx = 0; tx < kPatchSize; ++tx) {
@@ -88,6 +90,7 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
         r_y += gy_d * r;
         r_t += t * r;
         r_1 += r;
+        r_r += r * r;
       }
     }
     Eigen::Matrix4d JtJ;
@@ -100,18 +103,26 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
     if (ldlt.info() != Eigen::Success) return false;
     const Eigen::Vector4d step = -ldlt.solve(Jtr);
     if (!step.allFinite()) return false;
+    // Least-squares covariance of the shift: residual variance (image noise plus what the model misses,
+    // 4 parameters fitted) times the shift block of (J^T J)^-1.
+    const double dof = s_1 - 4.0;
+    const Eigen::Matrix4d JtJ_inv = ldlt.solve(Eigen::Matrix4d::Identity());
+    covariance = (dof > 0.0 ? r_r / dof : 0.0) * JtJ_inv.topLeftCorner<2, 2>();
     d += step.head<2>();
     alpha += step(2);
     beta += step(3);
     if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0) || !(alpha > 0.0)) return false;
     if (step.head<2>().norm() < 1e-3) break;
   }
+  if (!covariance.allFinite()) return false;
   *uv_px = Eigen::Vector2d(x, y) + d;
+  if (covariance_px2 != nullptr) *covariance_px2 = 0.5 * (covariance + covariance.transpose());
   return true;
 }
 
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
-                           const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc) {
+                           const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc,
+                           Eigen::Matrix2d* covariance_px2) {
   if (!query.predicted_px.allFinite() || query.half_width_px < 1 || query.half_height_px < 1) {
     return MatchOutcome::kNoRoom;
   }
@@ -169,14 +180,21 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
       if (value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) return MatchOutcome::kAmbiguous;
     }
   }
-  *uv_px = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
-  if (config.subpixel_iterations > 0) (void)refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, uv_px);
+  Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  if (config.subpixel_iterations > 0 &&
+      !refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance)) {
+    return MatchOutcome::kNoSubpixel;
+  }
+  *uv_px = uv;
+  if (covariance_px2 != nullptr) *covariance_px2 = covariance;
   return MatchOutcome::kMatched;
 }
 
 MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplate& tmpl, const EpipolarQuery& query,
                              const PinholeIntrinsics& intrinsics, const MatchConfig& config, Span<float> scratch_ncc,
-                             Span<std::int32_t> scratch_xy, Eigen::Vector2d* uv_second_px, float* best_ncc) {
+                             Span<std::int32_t> scratch_xy, Eigen::Vector2d* uv_second_px, float* best_ncc,
+                             Eigen::Matrix2d* covariance_px2) {
   *best_ncc = -2.0f;
   if (!(query.depth_min > 0.0) || !(query.depth_max > query.depth_min)) return MatchOutcome::kNoRoom;
   const Eigen::Vector3d ray = back_project_ray_world(query.uv_first_px, query.first, intrinsics);
@@ -188,7 +206,7 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   std::size_t count = 0;
   std::int32_t last_x = -1;
   std::int32_t last_y = -1;
-  bool have_previous = false;
+  bool have_previous = false;  // the first knot has no piece before it
   Eigen::Vector2d previous_px = Eigen::Vector2d::Zero();
   for (int k = 0; k < kKnots; ++k) {
     const double s = static_cast<double>(k) / (kKnots - 1);
@@ -197,8 +215,7 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
     Eigen::Vector2d px;
     if (!ok(project(X, query.second, intrinsics, &px)) || !px.allFinite() ||
         std::abs(px.x()) > 1e6 || std::abs(px.y()) > 1e6) {
-      have_previous = false;
-      continue;
+      return MatchOutcome::kNoRoom;  // part of the depth range behind the second camera
     }
     if (have_previous) {
       const Eigen::Vector2d step = px - previous_px;
@@ -207,7 +224,10 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
         const Eigen::Vector2d p = previous_px + step * (static_cast<double>(i) / pieces);
         const std::int32_t x = static_cast<std::int32_t>(std::lround(p.x()));
         const std::int32_t y = static_cast<std::int32_t>(std::lround(p.y()));
-        if ((x == last_x && y == last_y) || !patch_inside(second_image, x, y, 1)) continue;
+        if (x == last_x && y == last_y) continue;
+        // A depth range that leaves the image may hold the true match where it cannot be searched: then
+        // the best in-image peak proves nothing, so the seed is not matched at all.
+        if (!patch_inside(second_image, x, y, 1)) return MatchOutcome::kNoRoom;
         if (count == capacity) return MatchOutcome::kNoRoom;
         scratch_xy[2 * count] = x;
         scratch_xy[2 * count + 1] = y;
@@ -271,10 +291,14 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   const float right = ncc_at(second_image, bx + 1, by, tmpl);
   const float up = ncc_at(second_image, bx, by - 1, tmpl);
   const float down = ncc_at(second_image, bx, by + 1, tmpl);
-  *uv_second_px = refine(bx, by, best, left, right, up, down);
-  if (config.subpixel_iterations > 0) {
-    (void)refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, uv_second_px);
+  Eigen::Vector2d uv = refine(bx, by, best, left, right, up, down);
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  if (config.subpixel_iterations > 0 &&
+      !refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance)) {
+    return MatchOutcome::kNoSubpixel;
   }
+  *uv_second_px = uv;
+  if (covariance_px2 != nullptr) *covariance_px2 = covariance;
   return MatchOutcome::kMatched;
 }
 

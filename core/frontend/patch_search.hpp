@@ -20,6 +20,7 @@ enum class MatchOutcome : std::uint8_t {
   kBelowThreshold,  // no local NCC maximum at or above the threshold
   kAmbiguous,       // a second local maximum within uniqueness_ratio of the best
   kNoRoom,          // the search region left the image or outgrew the scratch space
+  kNoSubpixel,      // the photometric refinement did not converge within a pixel of the peak
 };
 
 struct MatchConfig {
@@ -32,10 +33,12 @@ struct MatchConfig {
 // Subpixel refinement of a match near integer peak (x, y): Gauss-Newton on I(p + d) = alpha * t + beta
 // (gain and offset, like NCC) over the template's valid pixels, started at *uv_px (the parabola fit).
 // A parabola through NCC samples is biased toward integer positions ("pixel locking"); this is not.
-// False, *uv_px untouched, when it does not converge within one pixel of (x, y) or the block leaves the
-// image.
+// covariance_px2 (may be null) gets the least-squares covariance of the position: residual variance
+// times the shift block of (J^T J)^-1, so a weakly textured or badly fitting patch reports a large one.
+// False, outputs untouched, when it does not converge within one pixel of (x, y) or the block leaves
+// the image.
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
-                     int iterations, Eigen::Vector2d* uv_px);
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2);
 
 // Tracking search: integer positions whose offset d from predicted_px has d^T S_inv d <= gate_chi2
 // (the 3-sigma ellipse for gate 9), inside a box of +-half_width x +-half_height pixels.
@@ -52,12 +55,16 @@ constexpr std::int32_t window_scratch_size(std::int32_t max_half_px) {
   return (2 * max_half_px + 3) * (2 * max_half_px + 3);
 }
 
+// covariance_px2 (may be null): the match's covariance from refine_subpixel, NaN when
+// subpixel_iterations is 0 (then the caller's fixed R applies).
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
-                           const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc);
+                           const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc,
+                           Eigen::Matrix2d* covariance_px2 = nullptr);
 
 // Epipolar search: the ray through uv_first_px of `first` between camera depths depth_min and depth_max
 // (z along first's optical axis, scene units) projects to a segment (a curve under distortion) in the
-// second image; every integer pixel on it is a candidate.
+// second image; every integer pixel on it is a candidate. When part of the range projects outside the
+// second image (or behind it) the search gives kNoRoom: the true match could be where it cannot look.
 struct EpipolarQuery {
   Eigen::Vector2d uv_first_px = Eigen::Vector2d::Zero();
   Viewpoint first;
@@ -68,6 +75,7 @@ struct EpipolarQuery {
 
 MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplate& tmpl, const EpipolarQuery& query,
                              const PinholeIntrinsics& intrinsics, const MatchConfig& config, Span<float> scratch_ncc,
-                             Span<std::int32_t> scratch_xy, Eigen::Vector2d* uv_second_px, float* best_ncc);
+                             Span<std::int32_t> scratch_xy, Eigen::Vector2d* uv_second_px, float* best_ncc,
+                             Eigen::Matrix2d* covariance_px2 = nullptr);
 
 }  // namespace vantage
