@@ -98,8 +98,14 @@ void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out,
                                 std::uint64_t noise_stream, int thread_index, int thread_count) const {
   const PinholeIntrinsics& k = config_.intrinsics;
   const ShadingConfig& shading = config_.shading;
-  const Eigen::Matrix3f R = view.R_world_cam.cast<float>();
-  const Eigen::Vector3f origin = view.position_world.cast<float>();
+  // Plain floats in the per-pixel loop: this is the hot path (and stays quick in Debug builds).
+  float R[3][3];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R[r][c] = static_cast<float>(view.R_world_cam(r, c));
+  }
+  const float ox = static_cast<float>(view.position_world.x());
+  const float oy = static_cast<float>(view.position_world.y());
+  const float oz = static_cast<float>(view.position_world.z());
   const float ambient = static_cast<float>(shading.ambient);
   const float noise_sigma = static_cast<float>(shading.pixel_noise_sigma);
   const std::uint8_t background = shading.background_gray;
@@ -132,13 +138,14 @@ void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out,
         const bool inside = u < k.width_px && v < k.height_px;
         valid[j] = inside ? -1 : 0;
         const std::size_t i = inside ? static_cast<std::size_t>(v) * k.width_px + u : 0;
-        const Eigen::Vector3f d = R * Eigen::Vector3f(ray_dir_cam_[2 * i], ray_dir_cam_[2 * i + 1], 1.0f);
-        packet.ray.org_x[j] = origin.x();
-        packet.ray.org_y[j] = origin.y();
-        packet.ray.org_z[j] = origin.z();
-        packet.ray.dir_x[j] = d.x();
-        packet.ray.dir_y[j] = d.y();
-        packet.ray.dir_z[j] = d.z();
+        const float cx = ray_dir_cam_[2 * i];
+        const float cy = ray_dir_cam_[2 * i + 1];
+        packet.ray.org_x[j] = ox;
+        packet.ray.org_y[j] = oy;
+        packet.ray.org_z[j] = oz;
+        packet.ray.dir_x[j] = R[0][0] * cx + R[0][1] * cy + R[0][2];
+        packet.ray.dir_y[j] = R[1][0] * cx + R[1][1] * cy + R[1][2];
+        packet.ray.dir_z[j] = R[2][0] * cx + R[2][1] * cy + R[2][2];
         packet.ray.tnear[j] = 0.0f;
         packet.ray.tfar[j] = std::numeric_limits<float>::infinity();
         packet.ray.time[j] = 0.0f;
@@ -160,18 +167,25 @@ void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out,
           if (depth != nullptr) depth->camera_z[pixel_index] = std::numeric_limits<float>::infinity();
         } else {
           const float t = packet.ray.tfar[j];
-          const Eigen::Vector3f dir(packet.ray.dir_x[j], packet.ray.dir_y[j], packet.ray.dir_z[j]);
-          Eigen::Vector3f n(packet.hit.Ng_x[j], packet.hit.Ng_y[j], packet.hit.Ng_z[j]);
-          const float len = n.norm();
-          n = len > 0.0f ? Eigen::Vector3f(n / len) : Eigen::Vector3f(-dir.normalized());
-          if (n.dot(dir) > 0.0f) n = -n;  // shade the side the camera sees
+          const float dx = packet.ray.dir_x[j], dy = packet.ray.dir_y[j], dz = packet.ray.dir_z[j];
+          float nx = packet.hit.Ng_x[j], ny = packet.hit.Ng_y[j], nz = packet.hit.Ng_z[j];
+          const float len = std::sqrt(nx * nx + ny * ny + nz * nz);
+          if (len > 0.0f) {
+            nx /= len;
+            ny /= len;
+            nz /= len;
+          }
+          if (nx * dx + ny * dy + nz * dz > 0.0f) {  // shade the side the camera sees
+            nx = -nx;
+            ny = -ny;
+            nz = -nz;
+          }
           float light = ambient;
           for (std::size_t l = 0; l < light_count; ++l) {
-            const float c = n.x() * light_dirs[l][0] + n.y() * light_dirs[l][1] + n.z() * light_dirs[l][2];
+            const float c = nx * light_dirs[l][0] + ny * light_dirs[l][1] + nz * light_dirs[l][2];
             light += light_gains[l] * std::max(0.0f, c);
           }
-          const Eigen::Vector3f X = origin + t * dir;
-          gray = 255.0f * texture_.albedo(X.x(), X.y(), X.z()) * light;
+          gray = 255.0f * texture_.albedo(ox + t * dx, oy + t * dy, oz + t * dz) * light;
           if (depth != nullptr) depth->camera_z[pixel_index] = t;
         }
         if (noise_sigma > 0.0f) gray += noise_sigma * hashed_gaussian(config_.seed, noise_stream, pixel_index);

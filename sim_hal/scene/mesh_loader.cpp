@@ -4,6 +4,7 @@
 #include <assimp/scene.h>
 
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -11,7 +12,9 @@
 
 #include "core/geometry/projection.hpp"
 #include "core/geometry/viewpoint.hpp"
+#include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/scene/embree_scene.hpp"
+#include "sim_hal/scene/mesh_file_checks.hpp"
 #include "sim_hal/sim_error.hpp"
 
 namespace vantage::sim {
@@ -57,6 +60,17 @@ TriangleMesh load_mesh(const std::string& path) {
   if (!std::filesystem::is_regular_file(path, ec)) fail(path, "not a regular file");
   if (std::filesystem::file_size(path, ec) == 0) fail(path, "empty file");
 
+  // Known assimp 5.2 hangs and crashes on malformed PLY and OFF: walk their structure first.
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".ply") {
+    const std::string problem = detail::check_ply_structure(path);
+    if (!problem.empty()) fail(path, problem);
+  } else if (extension == ".off") {
+    const std::string problem = detail::check_off_structure(path);
+    if (!problem.empty()) fail(path, problem);
+  }
+
   Assimp::Importer importer;
   // Points and lines are dropped; only triangles are kept.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
@@ -72,6 +86,11 @@ TriangleMesh load_mesh(const std::string& path) {
   TriangleMesh mesh;
   append_node(*scene, *scene->mRootNode, aiMatrix4x4(), mesh);
   if (mesh.triangles.empty()) fail(path, "no triangles");
+  for (const auto& t : mesh.triangles) {
+    for (std::uint32_t i : t) {
+      if (i >= mesh.vertices.size()) fail(path, "vertex index out of range");
+    }
+  }
   for (const auto& v : mesh.vertices) {
     if (!v.allFinite()) fail(path, "non-finite vertex coordinate");
   }
@@ -102,20 +121,24 @@ double mean_silhouette_fraction(const TriangleMesh& mesh, double distance, const
   k.cy_px = (intrinsics.cy_px + 0.5) / factor - 0.5;
 
   const EmbreeScene scene{TriangleMesh(mesh)};
+  RaycastCameraConfig camera_config;
+  camera_config.intrinsics = k;
+  camera_config.threads = 2;
+  const RaycastCamera camera(scene, camera_config, nullptr);
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(k.width_px) * k.height_px);
+  DepthImage depth;
   double sum = 0.0;
   for (int a = 0; a < kNormalizationAzimuths; ++a) {
     const double azimuth = 2.0 * 3.14159265358979323846 * a / kNormalizationAzimuths;
     const Eigen::Vector3d eye(distance * std::cos(azimuth), distance * std::sin(azimuth), 0.0);
     Viewpoint view;
-    if (!ok(look_at(eye, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &view))) continue;
-    std::size_t hits = 0;
-    for (int v = 0; v < k.height_px; ++v) {
-      for (int u = 0; u < k.width_px; ++u) {
-        const Eigen::Vector3d dir = back_project_ray_world(Eigen::Vector2d(u, v), view, k);
-        if (std::isfinite(scene.first_hit(eye, dir))) ++hits;
-      }
+    if (!ok(look_at(eye, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &view)) ||
+        !ok(camera.render(view, MutableGrayImageView{pixels.data(), k.width_px, k.height_px, k.width_px}, &depth))) {
+      continue;
     }
-    sum += static_cast<double>(hits) / (static_cast<double>(k.width_px) * k.height_px);
+    std::size_t hits = 0;
+    for (float z : depth.camera_z) hits += std::isfinite(z) ? 1 : 0;
+    sum += static_cast<double>(hits) / static_cast<double>(depth.camera_z.size());
   }
   return sum / kNormalizationAzimuths;
 }

@@ -1,6 +1,7 @@
 #include "sim_hal/scene/scene_config.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <sstream>
@@ -306,7 +307,11 @@ SceneConfig load_scene_config(const std::string& path) {
   if (!in) throw SimError(path + ": cannot open scene file");
   std::ostringstream text;
   text << in.rdbuf();
-  return parse_scene_config(text.str(), path);
+  SceneConfig config = parse_scene_config(text.str(), path);
+  // A relative mesh path is relative to the scene file, so scenes can ship next to their meshes.
+  const std::filesystem::path mesh(config.mesh_path);
+  if (mesh.is_relative()) config.mesh_path = (std::filesystem::path(path).parent_path() / mesh).string();
+  return config;
 }
 
 }  // namespace vantage::sim

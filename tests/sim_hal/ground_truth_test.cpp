@@ -1,0 +1,119 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "core/model/primitive_pool.hpp"
+#include "sim_hal/ground_truth/ground_truth.hpp"
+#include "test_meshes.hpp"
+
+using namespace vantage;
+using namespace vantage::sim;
+
+namespace {
+
+GridGeometry small_grid() {
+  GridGeometry g;
+  g.cells_per_side = 20;
+  g.cell_size_m = 2.0;
+  return g;
+}
+
+PinholeIntrinsics small_intrinsics() {
+  PinholeIntrinsics k;
+  k.width_px = 160;
+  k.height_px = 120;
+  k.fx_px = k.fy_px = 140.0;
+  k.cx_px = 79.5;
+  k.cy_px = 59.5;
+  return k;
+}
+
+PrimitivePool<8192> g_pool;  // static storage: pools are big
+
+}  // namespace
+
+TEST_CASE("visible set of a box: the sides and not the base underneath nor the top above the cameras", "[sim_hal][ground_truth]") {
+  const EmbreeScene scene{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
+  const OccupancyGrid occupancy(scene.mesh(), small_grid(), 0.5);
+  GroundTruthConfig config;
+  config.sample_count = 6000;
+  const GroundTruth truth(scene, occupancy, small_intrinsics(), config);
+  std::size_t sides = 0;
+  for (std::size_t i = 0; i < truth.samples().size(); ++i) {
+    const SurfaceSample& s = truth.samples()[i];
+    const bool side = std::abs(s.normal.z()) < 0.5;
+    sides += side ? 1 : 0;
+    if (s.normal.z() < -0.5) {
+      CHECK(truth.visible()[i] == 0);  // under the base: seen from no cell
+    }
+    CHECK((truth.visible()[i] != 0) == side);
+  }
+  CHECK(truth.visible_count() == sides);
+  CHECK(truth.visible_area() == Approx(600.0 * sides / 6000.0));
+  CHECK(truth.surface_area() == Approx(600.0));
+}
+
+TEST_CASE("an occluded sample is not visible and a cell's view looks at the grid centre", "[sim_hal][ground_truth]") {
+  // A small box hidden inside a big hollow-less box: the inner one is occluded from everywhere.
+  TriangleMesh mesh = test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5));
+  const TriangleMesh inner = test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(1, 1, 1));
+  const auto base = static_cast<std::uint32_t>(mesh.vertices.size());
+  for (const auto& v : inner.vertices) mesh.vertices.push_back(v);
+  for (const auto& t : inner.triangles) mesh.triangles.push_back({t[0] + base, t[1] + base, t[2] + base});
+  const EmbreeScene scene{mesh};
+  const GridGeometry g = small_grid();
+  const Viewpoint view = grid_cell_viewpoint(g, GridCell{19, 10});
+  CHECK((view.R_world_cam.col(2) - Eigen::Vector3d(-1, 0, 0)).norm() < 0.1);
+  CHECK(!GroundTruth::visible_from(scene, small_intrinsics(), view, Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::UnitX()));
+  CHECK(GroundTruth::visible_from(scene, small_intrinsics(), view, Eigen::Vector3d(5, 0, 0), Eigen::Vector3d::UnitX()));
+  CHECK(!GroundTruth::visible_from(scene, small_intrinsics(), view, Eigen::Vector3d(5, 0, 0), -Eigen::Vector3d::UnitX()));
+}
+
+TEST_CASE("coverage and accuracy and average sigma follow their definitions", "[sim_hal][ground_truth]") {
+  const EmbreeScene scene{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
+  const OccupancyGrid occupancy(scene.mesh(), small_grid(), 0.5);
+  GroundTruthConfig config;
+  config.sample_count = 4000;
+  config.coverage_distance = 0.5;
+  config.sigma_target = 0.01;
+  const GroundTruth truth(scene, occupancy, small_intrinsics(), config);
+  g_pool.clear();
+  CHECK(truth.coverage(g_pool, 0.5, 0.01) == 0.0);
+
+  // One precise primitive 0.1 outside every visible sample.
+  const auto& samples = truth.samples();
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (truth.visible()[i] == 0) continue;
+    Primitive p;
+    p.X_world = samples[i].position + 0.1 * samples[i].normal;
+    p.Sigma_world = Eigen::Vector3d(0.003, 0.004, 0.012).cwiseAbs2().asDiagonal();
+    PrimitiveIndex index;
+    REQUIRE(ok(g_pool.insert(p, &index)));
+  }
+  const double sigma = std::sqrt((0.003 * 0.003 + 0.004 * 0.004 + 0.012 * 0.012) / 3.0);
+  CHECK(primitive_sigma(g_pool[0]) == Approx(sigma));
+  CHECK(GroundTruth::average_sigma(g_pool) == Approx(sigma));
+  CHECK(truth.coverage(g_pool, 0.5, 0.01) == 1.0);
+  CHECK(truth.coverage(g_pool, 0.05, 0.01) == 0.0);    // every primitive is 0.1 away
+  CHECK(truth.coverage(g_pool, 0.5, 0.005) == 0.0);    // none is precise enough
+  double rms = 0, p95 = 0, mx = 0;
+  truth.accuracy(g_pool, &rms, &p95, &mx);
+  CHECK(rms == Approx(0.1).epsilon(1e-4));
+  CHECK(p95 == Approx(0.1).epsilon(1e-4));
+  CHECK(mx == Approx(0.1).epsilon(1e-4));
+
+  // Remove the primitives over half the box's sides: coverage drops to the remaining share.
+  std::size_t kept = 0, total = 0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    ++total;
+    if (g_pool[i].X_world.x() > 5.05) {
+      REQUIRE(ok(g_pool.erase(i)));
+    } else {
+      ++kept;
+    }
+  }
+  const Evaluation e = truth.evaluate(g_pool);
+  CHECK(e.primitive_count == kept);
+  // Samples on the x = 5 face lose coverage, except within 0.5 of the neighbouring faces' primitives.
+  CHECK(e.coverage < static_cast<double>(kept) / total + 0.05);
+  CHECK(e.coverage > static_cast<double>(kept) / total - 0.01);
+}

@@ -1,0 +1,117 @@
+#include <catch2/catch.hpp>
+#include <Eigen/Eigenvalues>
+#include <cmath>
+
+#include "core/model/primitive_pool.hpp"
+#include "sim_hal/ground_truth/ground_truth.hpp"
+#include "sim_hal/oracle/oracle_measurement_source.hpp"
+#include "test_meshes.hpp"
+
+using namespace vantage;
+using namespace vantage::sim;
+
+namespace {
+
+PrimitivePool<8192> g_pool;
+PrimitivePool<16> g_other_pool;
+
+Viewpoint looking_at_origin(const Eigen::Vector3d& eye) {
+  Viewpoint v;
+  REQUIRE(ok(look_at(eye, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v)));
+  return v;
+}
+
+double mean_nees(const OracleMeasurementSource& oracle, const PrimitivePoolView& pool) {
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
+    if (!pool.is_alive(i)) continue;
+    const Eigen::Vector3d* truth = oracle.true_point(i);
+    REQUIRE(truth != nullptr);
+    const Eigen::Vector3d e = pool[i].X_world - *truth;
+    sum += e.dot(pool[i].Sigma_world.ldlt().solve(e));
+    ++n;
+  }
+  return sum / static_cast<double>(n);
+}
+
+}  // namespace
+
+TEST_CASE("oracle initialization: depth-elongated covariance and honest errors", "[sim_hal][oracle]") {
+  const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 64)};
+  OracleConfig config;
+  config.site_count = 4000;
+  OracleMeasurementSource oracle(scene, config);
+  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  const Viewpoint b = looking_at_origin(Eigen::Vector3d(30.0, 1.0, 0.0));  // small baseline
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, b, g_pool, &report)));
+  REQUIRE(report.spawned > 500);
+  CHECK(g_pool.size() == report.spawned);
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    const Primitive& p = g_pool[i];
+    REQUIRE(is_spd(p.Sigma_world));
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(p.Sigma_world);
+    const Eigen::Vector3d axis = eig.eigenvectors().col(2);
+    const Eigen::Vector3d ray = (*oracle.true_point(i) - b.position_world).normalized();
+    CHECK(std::abs(axis.dot(ray)) > 0.95);
+    CHECK(std::sqrt(eig.eigenvalues()(2) / eig.eigenvalues()(0)) > 10.0);
+    CHECK(p.normal_world.cast<double>().dot(oracle.true_point(i)->normalized()) > 0.99);
+    CHECK(p.radius > 0.0f);
+  }
+  // NEES ~ chi-square with 3 dof: mean 3, standard error sqrt(6 / n).
+  CHECK(mean_nees(oracle, g_pool) == Approx(3.0).margin(0.35));
+}
+
+TEST_CASE("oracle update: EKF updates shrink sigma and augmentation adds new surface and errors stay honest", "[sim_hal][oracle]") {
+  const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 64)};
+  OracleConfig config;
+  config.site_count = 4000;
+  OracleMeasurementSource oracle(scene, config);
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0)), GrayImageView{},
+                               looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)), g_pool, &report)));
+  const std::size_t initial = g_pool.size();
+  const double sigma_before = GroundTruth::average_sigma(g_pool);
+  const std::uint64_t revision = g_pool.revision();
+
+  REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(21.0, 21.0, 0.0)), g_pool, &report)));
+  CHECK(report.predicted_in_view > 100);
+  CHECK(report.matched == report.predicted_in_view);
+  CHECK(report.updated + report.gated_outliers == report.matched);
+  CHECK(report.updated > report.matched * 9 / 10);
+  CHECK(report.spawned > 0);
+  CHECK(g_pool.size() == initial + report.spawned);
+  CHECK(g_pool.revision() > revision);
+  CHECK(GroundTruth::average_sigma(g_pool) < sigma_before);
+  CHECK(mean_nees(oracle, g_pool) == Approx(3.0).margin(0.5));
+
+  // A pool the oracle did not build is refused, nothing changes.
+  CHECK(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(0.0, 30.0, 0.0)), g_other_pool, &report) ==
+        Status::kInvalidArgument);
+}
+
+TEST_CASE("the oracle is deterministic for a seed", "[sim_hal][oracle]") {
+  const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
+  OracleConfig config;
+  config.site_count = 500;
+  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  const Viewpoint b = looking_at_origin(Eigen::Vector3d(30.0, 2.0, 0.0));
+  std::vector<Eigen::Vector3d> first;
+  for (int run = 0; run < 2; ++run) {
+    OracleMeasurementSource oracle(scene, config);
+    g_pool.clear();
+    UpdateReport report;
+    REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, b, g_pool, &report)));
+    REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(25.0, 10.0, 3.0)), g_pool, &report)));
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      if (run == 0) {
+        first.push_back(g_pool[i].X_world);
+      } else {
+        CHECK(g_pool[i].X_world == first[i]);
+      }
+    }
+  }
+}
