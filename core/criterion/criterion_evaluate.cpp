@@ -101,18 +101,28 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
   const float tolerance_radii = depth.tolerance_radii();
   const float log2_fxfy = setup.log2_fxfy;
 
+  const std::int32_t spare = depth.spare_index();
+
+  // Per block of kClusterSize lanes: geometry for the splat and the depth test of each lane, the fast
+  // single-pixel splat as a branch-free (pixel, value) pair (lanes that must not write aim at the
+  // buffer's spare cell), and the lane's weight w C (computed on every lane, kept on members only).
   alignas(64) float block_u[kClusterSize];
   alignas(64) float block_v[kClusterSize];
   alignas(64) float block_iz[kClusterSize];
   alignas(64) float block_du[kClusterSize];
   alignas(64) float block_dv[kClusterSize];
   alignas(64) float block_rpx[kClusterSize];
+  alignas(64) float block_iz_pixel[kClusterSize];
   alignas(64) float block_threshold[kClusterSize];
   alignas(64) float block_contribution[kClusterSize];
   alignas(64) std::int32_t block_pixel[kClusterSize];
-  alignas(64) std::int32_t block_front[kClusterSize];
+  alignas(64) std::int32_t block_write_pixel[kClusterSize];
+  alignas(64) std::int32_t block_general[kClusterSize];
   alignas(64) std::int32_t block_member[kClusterSize];
+  alignas(64) std::int32_t block_has_area[kClusterSize];
+  std::uint32_t general_lanes[kClusterSize];
 
+  float* __restrict buffer = depth.inverse_depth_data();
   // The block loop uses & on comparisons, not &&: short-circuit control flow stops the vectorizer.
   std::size_t entries = 0;
   for (std::size_t k = 0; k < kept; ++k) {
@@ -143,11 +153,11 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
       const float ncx = r00 * nx[i] + r01 * ny[i] + r02 * nz[i];
       const float ncy = r10 * nx[i] + r11 * ny[i] + r12 * nz[i];
       const float dist2 = ux * ux + uy * uy + uz * uz;
-      const bool in_front = zc > kNearDepth;
-      const bool front = in_front & (facing > 0.0f);
-      // Divisions and logs run on every lane, unmasked: a lane behind the camera or facing away computes
-      // garbage that the masks drop at the end. This file is compiled with -fno-trapping-math (see
-      // core/CMakeLists.txt): otherwise GCC may not speculate a division and leaves the loop scalar.
+      const bool front = (zc > kNearDepth) & (facing > 0.0f);
+      // Divisions, logs and roots run on every lane, unmasked: a lane behind the camera or facing away
+      // computes garbage that the masks drop. This file is compiled with -fno-trapping-math and
+      // -fno-math-errno (core/CMakeLists.txt): otherwise GCC will not speculate them and leaves the
+      // loop scalar.
       const float inv_z = 1.0f / zc;
       const float u = fx * xc * inv_z + cx;
       const float v = fy * yc * inv_z + cy;
@@ -158,6 +168,7 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
       const float du = ncx * inv_k * inv_fx;
       const float dv = ncy * inv_k * inv_fy;
       const float radius = rr[i];
+      const float radius_px = radius * f_max * inv_z;
       const bool in_image = (u >= -0.5f) & (v >= -0.5f) & (u < u_max) & (v < v_max);
       float uc = u > -1.0f ? u : -1.0f;
       uc = uc < u_clamp ? uc : u_clamp;
@@ -165,47 +176,55 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
       vc = vc < v_clamp ? vc : v_clamp;
       const std::int32_t pi = static_cast<std::int32_t>(uc + 0.5f);
       const std::int32_t pj = static_cast<std::int32_t>(vc + 0.5f);
+      const std::int32_t pixel = pj * width + pi;
       const float iz_pixel = inv_z + du * (static_cast<float>(pi) - u) + dv * (static_cast<float>(pj) - v);
-      // visibility_threshold, inlined by hand so the loop stays branch-free.
-      const float z_pixel = 1.0f / iz_pixel;
-      const float z_tolerant = z_pixel - (tolerance_radii * radius + kRelativeDepthTolerance * z_pixel);
-      // 1 / z_tolerant has the sign of z_tolerant; the append loop maps <= 0 (the tolerance reaches the
-      // camera: always visible) to 3e38.
-      const float threshold = 1.0f / z_tolerant;
-      // w C = 2^(log2(w' (pi r^2)^h) + h (log2(fx fy) + log2(facing / z^3))) * |u| / |Sigma' u|, u = X - x.
-      // f^2 = u^T Sigma^2 u = |Sigma u|^2: never negative in float, unlike a stored Sigma^2.
+      // splat_math::visibility_threshold, inlined: one division, and the select on its sign happens in
+      // the append loop (<= 0 means the tolerance reaches the camera: always visible).
+      const float threshold = iz_pixel / (1.0f - kRelativeDepthTolerance - tolerance_radii * radius * iz_pixel);
+      // f = |Sigma v|: with Sigma' = Sigma / scale, f' = |Sigma' u| / |u|, u = X - x (never negative in
+      // float, unlike a stored Sigma^2).
       const float su_x = s00[i] * ux + s01[i] * uy + s02[i] * uz;
       const float su_y = s01[i] * ux + s11[i] * uy + s12[i] * uz;
       const float su_z = s02[i] * ux + s12[i] * uy + s22[i] * uz;
       const float qu = su_x * su_x + su_y * su_y + su_z * su_z;
-      // All in the log2 domain: one exp2 and no sqrt (std::sqrt's errno path blocks vectorization).
-      // Unmasked logs as well: lanes with facing <= 0 or z <= 0 compute garbage and are dropped below.
-      const float log2_g_rest = fast::log2(facing) - 3.0f * fast::log2(zc);
-      const float log2_inv_f = 0.5f * (fast::log2(dist2) - fast::log2(qu));
-      const float weight = fast::exp2(lwa[i] + hh[i] * (log2_fxfy + log2_g_rest) + log2_inv_f);
+      // w C = 2^(log2(w' (pi r^2)^h) + h log2(fx fy facing / z^3)) * |u| / |Sigma' u|.
+      const float log2_g_rest = fast::log2(facing * inv_z * inv_z * inv_z);
+      const float weight = fast::exp2(lwa[i] + hh[i] * (log2_fxfy + log2_g_rest)) * std::sqrt(dist2 / qu);
       const bool member = front & in_image;
-      const bool contributes = member & (radius > 0.0f);
+      const bool fast_splat = member & (radius_px < 0.5f);
       block_u[i] = u;
       block_v[i] = v;
       block_iz[i] = inv_z;
       block_du[i] = du;
       block_dv[i] = dv;
-      block_rpx[i] = radius * f_max * inv_z;
+      block_rpx[i] = radius_px;
+      block_iz_pixel[i] = iz_pixel;
       block_threshold[i] = threshold;
-      block_contribution[i] = contributes ? weight : 0.0f;
-      block_pixel[i] = pj * width + pi;
-      block_front[i] = front ? 1 : 0;
+      block_contribution[i] = weight;  // raw: masked in the scalar loop (a select here makes GCC branch)
+      block_has_area[i] = radius > 0.0f ? 1 : 0;
+      block_pixel[i] = pixel;
+      block_write_pixel[i] = fast_splat ? pixel : spare;
+      block_general[i] = (front & !fast_splat) ? 1 : 0;
       block_member[i] = member ? 1 : 0;
     }
+    // Scalar, branch-free: the single-pixel splats, the member entries, and the list of lanes that need
+    // the general (multi-pixel or partly outside) splat.
+    std::size_t general_count = 0;
     for (std::size_t i = 0; i < kClusterSize; ++i) {
-      if (block_front[i] == 0) continue;
-      depth.splat_projected(block_u[i], block_v[i], block_iz[i], block_du[i], block_dv[i], block_rpx[i]);
-      // Branch-free append of the members (front-facing, centre in the image).
+      float& cell = buffer[block_write_pixel[i]];
+      const float iz = block_iz_pixel[i];
+      cell = iz > cell ? iz : cell;
       scratch.pixel_[entries] = block_pixel[i];
       scratch.threshold_[entries] = block_threshold[i] > 0.0f ? block_threshold[i] : 3.0e38f;
-      scratch.contribution_[entries] = block_contribution[i];
+      scratch.contribution_[entries] = block_has_area[i] != 0 ? block_contribution[i] : 0.0f;
       scratch.slot_[entries] = static_cast<std::uint32_t>(base + i);
       entries += static_cast<std::size_t>(block_member[i]);
+      general_lanes[general_count] = static_cast<std::uint32_t>(i);
+      general_count += static_cast<std::size_t>(block_general[i]);
+    }
+    for (std::size_t g = 0; g < general_count; ++g) {
+      const std::uint32_t i = general_lanes[g];
+      depth.splat_projected(block_u[i], block_v[i], block_iz[i], block_du[i], block_dv[i], block_rpx[i]);
     }
   }
   scratch.entry_count_ = entries;

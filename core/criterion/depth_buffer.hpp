@@ -55,11 +55,13 @@ inline void inverse_depth_gradient(float ncx, float ncy, float k, float dist2, f
 }
 
 // 1/z threshold: the disc, at inverse depth iz_pixel at its centre pixel, is visible when the buffer's
-// value there is <= this. Infinity-like (3e38) when the tolerance reaches the camera.
+// value there is <= this, i.e. when the closest surface is at most
+//   tolerance = tolerance_radii * radius + kRelativeDepthTolerance * z_pixel
+// in front of it: 1 / (z_pixel - tolerance) = iz_pixel / (1 - rel - tolerance_radii * radius * iz_pixel).
+// Infinity-like (3e38) when the tolerance reaches the camera.
 inline float visibility_threshold(float iz_pixel, float radius, float tolerance_radii) {
-  const float z = 1.0f / iz_pixel;
-  const float z_tolerant = z - (tolerance_radii * radius + kRelativeDepthTolerance * z);
-  return z_tolerant > 0.0f ? 1.0f / z_tolerant : 3.0e38f;
+  const float t = iz_pixel / (1.0f - kRelativeDepthTolerance - tolerance_radii * radius * iz_pixel);
+  return t > 0.0f ? t : 3.0e38f;
 }
 
 }  // namespace splat_math
@@ -119,6 +121,8 @@ class DepthBufferView {
   }
   float* inverse_depth_data() { return data_; }
   const float* inverse_depth_data() const { return data_; }
+  // Index of one extra cell after the image, never read: branch-free writers aim masked lanes at it.
+  std::int32_t spare_index() const { return width_ * height_; }
 
  protected:
   DepthBufferView(float* data, std::int32_t width, std::int32_t height)
@@ -149,7 +153,7 @@ class DepthBuffer : public DepthBufferView {
   DepthBuffer() : DepthBufferView(pixels_.data(), W, H) {}
 
  private:
-  std::array<float, static_cast<std::size_t>(W) * static_cast<std::size_t>(H)> pixels_{};
+  std::array<float, static_cast<std::size_t>(W) * static_cast<std::size_t>(H) + 1> pixels_{};  // + spare
 };
 
 // Scales intrinsics to a buffer of width x height pixels (pixel centres preserved). Caller validates.

@@ -7,7 +7,7 @@
 
 using namespace vantage;
 
-TEST_CASE("fast log2 and exp2 reproduce pow within 2e-5 relative") {
+TEST_CASE("fast log2 and exp2 reproduce pow within 2.5e-4 relative") {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> log_x(-40.0f, 40.0f);
   std::uniform_real_distribution<float> exponent(0.0f, 1.0f);
@@ -21,8 +21,8 @@ TEST_CASE("fast log2 and exp2 reproduce pow within 2e-5 relative") {
     const double got = fast::exp2(h * fast::log2(x));
     worst_pow = std::fmax(worst_pow, std::abs(got - expected) / expected);
   }
-  CHECK(worst_log < 1e-5);
-  CHECK(worst_pow < 2e-5);
+  CHECK(worst_log < 1.5e-4);
+  CHECK(worst_pow < 2.5e-4);
   CHECK(fast::exp2(0.0f) == Approx(1.0f).epsilon(1e-6));
   CHECK(fast::exp2(-1000.0f) > 0.0f);  // clamped, finite
   CHECK(std::isfinite(fast::exp2(1000.0f)));

@@ -63,7 +63,7 @@ TEST_CASE("terms of a visible primitive match the paper's formulas") {
   CHECK(t.f == Approx(0.04).epsilon(1e-5));  // v = -x, Sigma v = -0.04 x
   CHECK(t.h == Approx(0.7).epsilon(1e-6));
   CHECK(t.contribution == Approx(t.w * std::pow(g, 0.7) / 0.04).epsilon(1e-4));
-  CHECK(evaluate_F(g_model, view) == Approx(t.contribution).epsilon(1e-4));
+  CHECK(evaluate_F(g_model, view) == Approx(t.contribution).epsilon(1e-3));
 }
 
 TEST_CASE("an elongated-uncertainty primitive's best view is orthogonal to its e1") {
@@ -177,7 +177,7 @@ TEST_CASE("F equals the sum of the per-primitive double-precision terms") {
   }
   CHECK(visible > 60);    // about half the sphere faces the camera, minus grazing self-occlusion
   CHECK(visible < 200);
-  CHECK(evaluate_F(g_model, view) == Approx(sum).epsilon(1e-4));
+  CHECK(evaluate_F(g_model, view) == Approx(sum).epsilon(1e-3));
 }
 
 TEST_CASE("visible_primitives agrees with the public depth-buffer API") {
