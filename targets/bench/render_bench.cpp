@@ -7,6 +7,9 @@
 
 #include "core/geometry/viewpoint.hpp"
 #include "core/image/gray_image.hpp"
+#include "core/model/primitive_pool.hpp"
+#include "sim_hal/ground_truth/ground_truth.hpp"
+#include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/world/sim_world.hpp"
 
@@ -46,5 +49,47 @@ void BM_RenderBunnyVga(benchmark::State& state) {
   state.counters["frames_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RenderBunnyVga)->Arg(1)->Arg(2)->ArgName("threads")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Ground truth on the bunny: building it (samples + visible set, once per scene) and evaluating a model
+// of oracle primitives (coverage, accuracy, average sigma: meant to run once per image).
+vantage::PrimitivePool<> g_pool;
+
+void BM_GroundTruthBuildBunny(benchmark::State& state) {
+  const auto& world = bunny_world();
+  std::size_t visible = 0;
+  for (auto _ : state) {
+    const vantage::sim::GroundTruth truth(world.scene(), world.occupancy(), world.config().intrinsics,
+                                          vantage::sim::GroundTruthConfig{});
+    visible = truth.visible_count();
+  }
+  state.counters["visible_samples"] = static_cast<double>(visible);
+  state.counters["occupied_cells"] = world.occupancy().occupied_count();
+  state.counters["scale"] = world.normalization().scale;
+  state.counters["area_fraction"] = world.normalization().mean_area_fraction;
+}
+BENCHMARK(BM_GroundTruthBuildBunny)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+
+void BM_GroundTruthEvaluateBunny(benchmark::State& state) {
+  const auto& world = bunny_world();
+  static const vantage::sim::GroundTruth truth(world.scene(), world.occupancy(), world.config().intrinsics,
+                                               vantage::sim::GroundTruthConfig{});
+  vantage::sim::OracleConfig oracle_config;
+  oracle_config.intrinsics = world.config().intrinsics;
+  vantage::sim::OracleMeasurementSource oracle(world.scene(), oracle_config);
+  g_pool.clear();
+  vantage::Viewpoint a, b;
+  vantage::UpdateReport report;
+  if (!vantage::ok(vantage::look_at(Eigen::Vector3d(40, 0, 0), Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &a)) ||
+      !vantage::ok(vantage::look_at(Eigen::Vector3d(40, 4, 0), Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &b)) ||
+      !vantage::ok(oracle.initialize(vantage::GrayImageView{}, a, vantage::GrayImageView{}, b, g_pool, &report))) {
+    state.SkipWithError("oracle initialization failed");
+    return;
+  }
+  vantage::sim::Evaluation e;
+  for (auto _ : state) e = truth.evaluate(g_pool);
+  state.counters["primitives"] = static_cast<double>(e.primitive_count);
+  state.counters["rms_error"] = e.rms_error;
+}
+BENCHMARK(BM_GroundTruthEvaluateBunny)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
