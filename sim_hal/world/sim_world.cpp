@@ -35,4 +35,21 @@ SimWorld::SimWorld(const SceneConfig& config, TriangleMesh world_mesh) : config_
   occupancy_ = std::make_unique<OccupancyGrid>(scene_->mesh(), config_.grid, config_.occupancy_margin);
 }
 
+RaycastCameraConfig camera_config_from(const SceneConfig& config) {
+  RaycastCameraConfig c;
+  c.intrinsics = config.intrinsics;
+  c.shading = config.shading;
+  c.threads = config.render_threads;
+  c.seed = config.seed;
+  return c;
+}
+
+KinematicRobotConfig robot_config_from(const SceneConfig& config) {
+  KinematicRobotConfig c;
+  c.speed = config.robot_speed;
+  c.pose_noise = config.pose_noise;
+  c.seed = config.seed + 1u;
+  return c;
+}
+
 }  // namespace vantage::sim

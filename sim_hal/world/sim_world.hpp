@@ -3,6 +3,8 @@
 // cells. Camera, robot, ground truth and oracle are built on top of it by the target.
 #include <memory>
 
+#include "sim_hal/kinematic_robot.hpp"
+#include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/scene/embree_scene.hpp"
 #include "sim_hal/scene/mesh_loader.hpp"
 #include "sim_hal/scene/scene_config.hpp"
@@ -28,5 +30,10 @@ class SimWorld {
   std::unique_ptr<EmbreeScene> scene_;
   std::unique_ptr<OccupancyGrid> occupancy_;
 };
+
+// The camera and robot settings a scene file describes (seed shared; the robot's pose-noise stream is
+// seed + 1 so it does not repeat the camera's noise).
+RaycastCameraConfig camera_config_from(const SceneConfig& config);
+KinematicRobotConfig robot_config_from(const SceneConfig& config);
 
 }  // namespace vantage::sim
