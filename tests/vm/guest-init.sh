@@ -45,6 +45,24 @@ for node in $(cat /etc/vm/expect-nodes); do
   fi
 done
 
+# The second UART for MAVLink (run-vm.sh --serial2-socket) as /dev/ttyMAV0: ttyS1 on x86, and on arm
+# the 8250 port that QEMU's PCI 16550 (vendor 0x1b36) was given.
+if [ -f /etc/vm/serial2 ]; then
+  tty=$(cat /etc/vm/serial2)
+  if [ "$tty" = pci ]; then
+    tty=
+    for t in /sys/class/tty/ttyS*; do
+      [ "$(cat "$t/device/vendor" 2>/dev/null)" = 0x1b36 ] && tty=${t##*/}
+    done
+  fi
+  if [ -z "$tty" ] || [ ! -e "/dev/$tty" ]; then
+    echo "FAIL vm_setup: no second UART (${tty:-no PCI serial port found})"
+    finish 93
+  fi
+  ln -s "/dev/$tty" /dev/ttyMAV0
+  echo "INFO serial2: /dev/ttyMAV0 -> /dev/$tty"
+fi
+
 # libcamera without udevd: libudev lists a device only once udev has "initialized" it, which it reads
 # from /run/udev/data/c<major>:<minor> (I: is the initialization time).
 mkdir -p /run/udev/data

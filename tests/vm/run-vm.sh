@@ -7,7 +7,7 @@
 # usage: run-vm.sh --arch x86_64|aarch64 --work DIR --cache DIR [--modules "vivid[:p=v,...] ..."]
 #                  --bin FILE... [--data FILE...] --run "guest shell command" [--expect-node /dev/X...]
 #                  [--libcamera] [--timeout S] [--min-pass N] [--serial2-socket PATH] [--console-copy FILE]
-# --serial2-socket gives the guest a second UART (ttyS1) connected to that listening unix socket.
+# --serial2-socket gives the guest a second UART, /dev/ttyMAV0, connected to that listening unix socket.
 # --work is this test's scratch directory; --cache is shared by all VM tests of a build (vmlinux,
 # vimc.ko, the base initramfs per module set). In the guest, --bin files are in /opt/vantage/bin and
 # --data files in /opt/vantage; --run executes in /opt/vantage.
@@ -176,6 +176,9 @@ done >"$stage/etc/vm/modules"
 printf '%s\n' "${nodes[@]}" >"$stage/etc/vm/expect-nodes"
 printf '%s\n' "$run_cmd" >"$stage/etc/vm/run.sh"
 echo "/lib/$triplet" >"$stage/etc/vm/library-path"
+if [ -n "$serial2" ]; then
+  if [ "$arch" = x86_64 ]; then echo ttyS1; else echo pci; fi >"$stage/etc/vm/serial2"
+fi
 for bin in "${bins[@]}"; do
   [ -f "$bin" ] || die "test program $bin does not exist (build it first)"
   "$strip" --strip-debug -o "$stage/opt/vantage/bin/$(basename "$bin")" "$bin"
@@ -218,10 +221,15 @@ else
   args+=(-M virt -cpu cortex-a57 -accel tcg)
 fi
 if [ -n "$serial2" ]; then
-  # A second UART (ttyS1 in the guest) connected to a unix socket another process listens on.
-  [ "$arch" = x86_64 ] || die "--serial2-socket needs x86_64 (the arm virt machine has one UART)"
+  # A second UART connected to a unix socket another process listens on: on x86 the PC's second 16550
+  # (ttyS1); the arm virt machine has one PL011 (the console), so there a PCI 16550 (8250_pci, ttyS<n>).
+  # guest-init.sh links it to /dev/ttyMAV0.
   [ -S "$serial2" ] || die "--serial2-socket $serial2 is not a listening unix socket"
-  args+=(-serial mon:stdio -chardev "socket,id=serial2,path=$serial2" -serial chardev:serial2)
+  if [ "$arch" = x86_64 ]; then
+    args+=(-serial mon:stdio -chardev "socket,id=serial2,path=$serial2" -serial chardev:serial2)
+  else
+    args+=(-chardev "socket,id=serial2,path=$serial2" -device pci-serial,chardev=serial2)
+  fi
 fi
 append="console=$console quiet panic=-1 rdinit=/init"
 log="$work/console.log"

@@ -58,7 +58,7 @@ socat -b 4096 "UNIX-LISTEN:$sock,unlink-early" "UDP4:127.0.0.1:$port" </dev/null
 socat_pid=$!
 for _ in $(seq 50); do [ -S "$sock" ] && break; sleep 0.1; done
 [ -S "$sock" ] || die "socat did not create $sock"
-echo "run-with-peer: peer on udp 127.0.0.1:$port, guest ttyS1 via $sock"
+echo "run-with-peer: peer on udp 127.0.0.1:$port, the guest's second UART via $sock"
 
 set +e
 bash "$here/run-vm.sh" "$@" --serial2-socket "$sock"

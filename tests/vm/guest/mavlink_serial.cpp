@@ -1,7 +1,8 @@
-// Guest program: the MAVLink motion driver over a real serial line. In the VM, /dev/ttyS1 is QEMU's
-// second UART, whose host end is bridged to the node-mavlink vehicle peer (tests/vm/run-with-peer.sh).
-// It exercises SerialLink's termios setup on a kernel tty driver, not a pty: link up, pose received,
-// a commanded viewpoint reached. Prints PASS/FAIL lines (see guest-init.sh).
+// Guest program: the MAVLink motion driver over a real serial line. In the VM, /dev/ttyMAV0 links to
+// QEMU's second UART (a 16550: ttyS1 on x86, a PCI 16550 on arm), whose host end is bridged to the
+// node-mavlink vehicle peer (tests/vm/run-with-peer.sh). It exercises SerialLink's termios setup on a
+// kernel tty driver, not a pty: link up, pose received, a commanded viewpoint reached. Prints PASS/FAIL
+// lines (see guest-init.sh).
 // usage: vm_mavlink_serial <tty> <baud>
 #include <unistd.h>
 
