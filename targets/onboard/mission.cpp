@@ -13,6 +13,17 @@ namespace vantage::onboard {
 namespace {
 
 using FrameBuffer = GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight>;
+using WallClock = std::chrono::steady_clock;
+
+double seconds_since(WallClock::time_point t0) { return std::chrono::duration<double>(WallClock::now() - t0).count(); }
+
+// Where the mission's time goes (printed with every image).
+struct Timing {
+  double grid_s = 0.0;
+  double update_s = 0.0;
+  double motion_s = 0.0;
+  double capture_s = 0.0;
+};
 
 // Static storage for the heap-free core (several MB): never on the stack, never on the heap.
 PrimitivePool<kDefaultPrimitiveCapacity> g_pool;
@@ -122,8 +133,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.depth_min = m.depth_min_m;
   fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m
                                       : std::sqrt(2.0) * 0.5 * m.grid.cells_per_side * m.grid.cell_size_m + 0.5 * m.viewing_distance_m;
-  if (!ok(g_front_end.configure(intrinsics, fc))) {
-    *summary = config.source + ": mission: the image front end rejects this camera or depth range";
+  if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
+    *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;
   }
   if (!ok(g_grid.configure(m.grid, intrinsics, m.keep_out_radius_m))) {
@@ -143,6 +154,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   }
 
   Rig rig(config, camera, reopen, motion, clock);
+  Timing timing;
   try {
     rig.wait_for_vehicle();
     std::printf("vehicle: link up on %s\n", config.mavlink.endpoint.c_str());
@@ -168,14 +180,18 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
       *summary = std::string("mission: could not start from the initial images: ") + to_string(begun);
       return kExitMissionFailed;
     }
-    std::printf("mission: started from cells (%d,%d) and (%d,%d)\n", first_cell.ix, first_cell.iy, second_cell.ix,
-                second_cell.iy);
+    const FrontEndStats& fs = g_front_end.stats();
+    std::printf("mission: started from cells (%d,%d) and (%d,%d): %zu primitives (front end: %llu seeds tried, %llu matched)\n",
+                first_cell.ix, first_cell.iy, second_cell.ix, second_cell.iy, g_pool.size(),
+                static_cast<unsigned long long>(fs.seeds_tried), static_cast<unsigned long long>(fs.seeds_matched));
     for (;;) {
       const SensingAction action = g_executive.next();
       if (action.kind == SensingActionKind::kDone || action.kind == SensingActionKind::kFailed) break;
       switch (action.kind) {
         case SensingActionKind::kEvaluateGrid: {
+          const auto t0 = WallClock::now();
           const Status evaluated = g_grid.evaluate(g_pool);
+          timing.grid_s += seconds_since(t0);
           if (!ok(evaluated)) {
             *summary = std::string("mission: grid evaluation failed: ") + to_string(evaluated);
             return kExitMissionFailed;
@@ -183,18 +199,29 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
           g_executive.on_grid_evaluated();
           break;
         }
-        case SensingActionKind::kMoveTo:
+        case SensingActionKind::kMoveTo: {
+          const auto t0 = WallClock::now();
           rig.move_to(action.view);
+          timing.motion_s += seconds_since(t0);
           g_executive.on_arrived(motion.current_pose().pose);
           break;
+        }
         case SensingActionKind::kCapture: {
+          auto t0 = WallClock::now();
           rig.move_to(action.view);
+          timing.motion_s += seconds_since(t0);
+          t0 = WallClock::now();
           Viewpoint pose;
           const GrayImageView image = rig.grab(g_frame, &pose);
+          timing.capture_s += seconds_since(t0);
+          t0 = WallClock::now();
           g_executive.on_image(image, pose);
-          std::printf("image %u/%u at cell (%d,%d): avg sigma %.5f, NBV iterations %u\n", g_executive.images(),
-                      m.max_images, action.cell.ix, action.cell.iy, g_executive.precision_level(),
-                      g_executive.nbv_iterations());
+          timing.update_s += seconds_since(t0);
+          std::printf("image %u/%u at cell (%d,%d): avg sigma %.5f, %zu primitives, NBV iterations %u "
+                      "(s so far: grid %.1f, update %.1f, motion %.1f, capture %.1f)\n",
+                      g_executive.images(), m.max_images, action.cell.ix, action.cell.iy, g_executive.precision_level(),
+                      g_pool.size(), g_executive.nbv_iterations(), timing.grid_s, timing.update_s, timing.motion_s,
+                      timing.capture_s);
           std::fflush(stdout);
           break;
         }

@@ -21,7 +21,7 @@ class Section {
  public:
   Section(const YAML::Node& node, std::string name, std::set<std::string> known)
       : node_(node), name_(std::move(name)) {
-    if (!node_) return;
+    if (!node_ || node_.IsNull()) return;
     if (!node_.IsMap()) throw Failure{name_, "must be a mapping"};
     for (const auto& item : node_) {
       const std::string key = item.first.as<std::string>();
@@ -29,7 +29,12 @@ class Section {
     }
   }
   std::string field(const std::string& key) const { return name_ + "." + key; }
-  YAML::Node get(const std::string& key) const { return node_ ? node_[key] : YAML::Node(); }
+  // An undefined node when the section or the key is absent (then the default stays).
+  YAML::Node get(const std::string& key) const {
+    if (!node_ || node_.IsNull()) return YAML::Node(YAML::NodeType::Undefined);
+    const YAML::Node& section = node_;
+    return section[key];
+  }
 
   void text(const std::string& key, std::string* out) const {
     const YAML::Node n = get(key);
@@ -109,12 +114,13 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
       return source + ": line " + std::to_string(e.mark.line + 1) + ": not valid YAML (" + e.msg + ")";
     }
     if (!root || !root.IsMap()) throw Failure{"(document)", "must be a mapping with camera, mavlink and mission"};
+    const YAML::Node& sections = root;  // const access: a missing section stays undefined
     for (const auto& item : root) {
       const std::string key = item.first.as<std::string>();
       if (key != "camera" && key != "mavlink" && key != "mission") throw Failure{key, "unknown section"};
     }
 
-    const Section cam(root["camera"], "camera",
+    const Section cam(sections["camera"], "camera",
                       {"driver", "device", "camera_id", "format", "width", "height", "frame_rate_hz", "buffers",
                        "timeout_ms", "calibration", "scene"});
     std::string driver = "v4l2";
@@ -143,7 +149,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
       throw Failure{"camera.calibration", "required for a real camera (a camera_info YAML file)"};
     }
 
-    const Section mav(root["mavlink"], "mavlink",
+    const Section mav(sections["mavlink"], "mavlink",
                       {"endpoint", "signing_key_file", "link_id", "system_id", "component_id", "target_system",
                        "target_component", "heartbeat_period_s", "setpoint_period_s", "link_loss_timeout_s",
                        "pose_rate_hz", "arrive_tolerance_m", "arrive_yaw_tolerance_rad", "arrive_timeout_s",
@@ -170,7 +176,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mav.vector("world_origin_ned", m.frame.world_origin_ned.data(), 3);
     if (const char* bad = m.validate(); bad[0] != '\0') throw Failure{"mavlink", bad};
 
-    const Section mis(root["mission"], "mission",
+    const Section mis(sections["mission"], "mission",
                       {"cells_per_side", "cell_size_m", "elevation_m", "center_xy", "viewing_distance_m",
                        "keep_out_radius_m", "max_images", "rho_sigma", "eta_utility", "split_epsilon_cells",
                        "depth_min_m", "depth_max_m"});

@@ -7,6 +7,7 @@ onboard=$1 node=$2 peer_dir=$3 work=$4 images=${5:-8}
 [ -f "$peer_dir/node_modules/node-mavlink/package.json" ] || { echo "FAIL: run tests/mavlink_peer/install.sh"; exit 1; }
 mkdir -p "$work"
 peer_out="$work/peer.out"
+: >"$peer_out"  # exists before the peer opens it (the loop below reads it)
 # The peer starts off the first view (NED x=-35 north, y=3 east, z=0) and flies at 20 units/s.
 "$node" "$peer_dir/peer.js" --duration-s 58 --speed-mps 20 --start-ned -35,3,0 </dev/null >"$peer_out" 2>&1 &
 peer_pid=$!
