@@ -34,6 +34,7 @@ RaycastCamera::RaycastCamera(const EmbreeScene& scene, const RaycastCameraConfig
   }
   if (config_.shading.lights.size() > kMaxLights) throw SimError("raycast camera: at most 8 lights");
   for (auto& light : config_.shading.lights) light.direction_world.normalize();
+  object_bounds_ = scene_.mesh().bounds();
   // Per-pixel undistorted ray (x, y, 1) in the camera frame: the ray's parameter t is then camera z.
   ray_dir_cam_.resize(static_cast<std::size_t>(k.width_px) * k.height_px * 2);
   const Viewpoint identity;
@@ -119,6 +120,36 @@ void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out,
   const int tiles_x = (k.width_px + kTile - 1) / kTile;
   const int tiles_y = (k.height_px + kTile - 1) / kTile;
 
+  // Tiles outside the projected bounding box of the object need no rays. Only without distortion (a
+  // distorted image of the box's corners need not bound the distorted object) and with the whole box
+  // in front of the camera; otherwise every tile is cast.
+  int tile_x0 = 0, tile_x1 = tiles_x - 1, tile_y0 = 0, tile_y1 = tiles_y - 1;
+  if (k.k1 == 0.0 && k.k2 == 0.0) {
+    double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+    bool all_in_front = true;
+    for (int c = 0; c < 8 && all_in_front; ++c) {
+      const Eigen::Vector3d corner = object_bounds_.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+      const Eigen::Vector3d Xc = view.R_world_cam.transpose() * (corner - view.position_world);
+      if (!(Xc.z() > 1e-6)) {
+        all_in_front = false;
+        break;
+      }
+      const double u = k.fx_px * Xc.x() / Xc.z() + k.cx_px;
+      const double v = k.fy_px * Xc.y() / Xc.z() + k.cy_px;
+      umin = std::min(umin, u);
+      umax = std::max(umax, u);
+      vmin = std::min(vmin, v);
+      vmax = std::max(vmax, v);
+    }
+    if (all_in_front) {
+      // One pixel of slack for float rounding at the box's edges.
+      tile_x0 = static_cast<int>(std::floor(std::max(umin - 1.0, -1.0) / kTile));
+      tile_x1 = static_cast<int>(std::floor(std::min(umax + 1.0, static_cast<double>(k.width_px)) / kTile));
+      tile_y0 = static_cast<int>(std::floor(std::max(vmin - 1.0, -1.0) / kTile));
+      tile_y1 = static_cast<int>(std::floor(std::min(vmax + 1.0, static_cast<double>(k.height_px)) / kTile));
+    }
+  }
+
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -155,7 +186,9 @@ void RaycastCamera::render_rows(const Viewpoint& view, MutableGrayImageView out,
         packet.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
         packet.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
       }
-      rtcIntersect16(valid, scene_.handle(), &context, &packet);
+      if (tx >= tile_x0 && tx <= tile_x1 && ty >= tile_y0 && ty <= tile_y1) {
+        rtcIntersect16(valid, scene_.handle(), &context, &packet);
+      }  // else every ray stays a miss (geomID invalid)
       for (int j = 0; j < 16; ++j) {
         if (valid[j] == 0) continue;
         const int u = px[j];

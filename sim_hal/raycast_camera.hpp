@@ -59,6 +59,7 @@ class RaycastCamera final : public hal::Camera {
   const SimPoseSource* pose_source_;
   const hal::Clock* clock_;
   SolidTexture texture_;
+  Eigen::AlignedBox3d object_bounds_;  // rays that cannot reach it are not cast
   std::vector<float> ray_dir_cam_;  // per pixel (x, y) of the undistorted ray (x, y, 1), camera frame
   std::uint32_t sequence_ = 0;
 };
