@@ -89,7 +89,8 @@ void SensingExecutive::finish(DoneReason reason, const char* text) {
 Status SensingExecutive::begin(const SensingConfig& config, const GrayImageView& first, const Viewpoint& first_view,
                                const GrayImageView& second, const Viewpoint& second_view) {
   images_ = rejected_images_ = nbv_iterations_ = unreachable_nbv_ = split_fallbacks_ = 0;
-  replans_without_image_ = 0;
+  replans_without_image_ = stagnations_ = same_cell_nbvs_ = 0;
+  tabu_size_ = 0;
   path_length_cells_ = utility_ = precision_ = 0.0;
   plan_size_ = plan_pos_ = segment_size_ = segment_pos_ = predicted_size_ = 0;
   last_replan_ = ReplanReason::kNone;
@@ -188,6 +189,15 @@ void SensingExecutive::replan_now() {
   }
   GridCell goal{};
   if (!choose_goal(map, &goal)) return;
+  if (policy_uses_criterion(config_.policy) && config_.stagnation_repeats > 0 && nbv_iterations_ > 0) {
+    same_cell_nbvs_ = (goal == current_ && nbv_ == current_) ? same_cell_nbvs_ + 1 : 0;
+    if (same_cell_nbvs_ >= config_.stagnation_repeats) {
+      ++stagnations_;
+      same_cell_nbvs_ = 0;
+      add_tabu(current_);
+      if (!choose_goal(map, &goal)) return;
+    }
+  }
   if (!build_plan(map, goal)) return;
   nbv_ = goal;
   ++nbv_iterations_;
@@ -197,6 +207,33 @@ void SensingExecutive::replan_now() {
   plan_pos_ = 0;
   segment_size_ = segment_pos_ = 0;
   advance();
+}
+
+bool SensingExecutive::is_tabu(const GridCell& cell) const {
+  for (std::size_t k = 0; k < tabu_size_; ++k) {
+    if (tabu_cells_[k] == cell && nbv_iterations_ < tabu_until_[k]) return true;
+  }
+  return false;
+}
+
+void SensingExecutive::add_tabu(const GridCell& cell) {
+  // Reuse an expired slot, else the oldest-expiring one.
+  std::size_t slot = tabu_size_;
+  for (std::size_t k = 0; k < tabu_size_; ++k) {
+    if (nbv_iterations_ >= tabu_until_[k] || tabu_cells_[k] == cell) {
+      slot = k;
+      break;
+    }
+  }
+  if (slot == kMaxTabuCells) {
+    slot = 0;
+    for (std::size_t k = 1; k < tabu_size_; ++k) {
+      if (tabu_until_[k] < tabu_until_[slot]) slot = k;
+    }
+  }
+  if (slot == tabu_size_) ++tabu_size_;
+  tabu_cells_[slot] = cell;
+  tabu_until_[slot] = nbv_iterations_ + config_.tabu_iterations;
 }
 
 bool SensingExecutive::choose_goal(const GridMapView& map, GridCell* goal) {
@@ -214,19 +251,25 @@ bool SensingExecutive::choose_goal(const GridMapView& map, GridCell* goal) {
       // robot's component (enclosed), take the best reachable one instead.
       bool any_free = false, any_reachable = false;
       float best_free = 0.0f, best_reachable = 0.0f;
-      for (std::int32_t i = 0; i < geo.cell_count(); ++i) {
-        if (map.free[i] == 0) continue;
-        const float cost = map.cost[i];
-        if (!any_free || cost < best_free) {
-          any_free = true;
-          best_free = cost;
+      for (int pass = 0; pass < 2 && !any_reachable; ++pass) {
+        const bool honour_tabu = pass == 0 && tabu_size_ > 0;
+        any_free = false;
+        for (std::int32_t i = 0; i < geo.cell_count(); ++i) {
+          if (map.free[i] == 0) continue;
+          const GridCell cell = geo.cell_at(i);
+          if (honour_tabu && is_tabu(cell)) continue;
+          const float cost = map.cost[i];
+          if (!any_free || cost < best_free) {
+            any_free = true;
+            best_free = cost;
+          }
+          if (query_.in_component(cell) && (!any_reachable || cost < best_reachable)) {
+            any_reachable = true;
+            best_reachable = cost;
+            *goal = cell;
+          }
         }
-        const GridCell cell = geo.cell_at(i);
-        if (query_.in_component(cell) && (!any_reachable || cost < best_reachable)) {
-          any_reachable = true;
-          best_reachable = cost;
-          *goal = cell;
-        }
+        if (tabu_size_ == 0) break;
       }
       if (!any_free || !any_reachable) {
         fail(Status::kNoFreeCell, "no free cell in the grid");

@@ -24,6 +24,13 @@
 // FALSE (an empty set S at some level, e.g. both ends hugging a thin wall) although PathQry connects the
 // ends: the executive falls back to the PathQry cells as waypoints and counts it (split_fallback_count()).
 //
+// Stagnation guard. Proposition 1 (section V.C) relies on repeated images from the NBV consuming its
+// criterion value. When the measurement source does not update the primitives that make the cell
+// attractive (their true surface is occluded or grazing, a match fails), the NBV stays at the robot's
+// cell forever. After stagnation_repeats NBVs in a row at the robot's cell, that cell is taboo for
+// ComputeNBV during tabu_iterations NBV iterations (at most kMaxTabuCells cells at once; when every
+// reachable cell is taboo the guard is ignored). stagnation_count() counts the interventions.
+//
 // The robot's own cell counts as free even when the grid marks it otherwise: the robot stands there, so
 // a mark there comes from model error (e.g. a badly triangulated primitive near the camera). A grid
 // with no free cell at all still fails with kNoFreeCell.
@@ -55,6 +62,7 @@ namespace vantage {
 
 // The largest model region PredictModel tracks: primitives visible from nu* beyond this are left out of U.
 inline constexpr std::size_t kMaxPredictedPrimitives = kDefaultPrimitiveCapacity;
+inline constexpr std::size_t kMaxTabuCells = 32;
 
 struct SensingConfig {
   PlannerPolicy policy = PlannerPolicy::kNbv;
@@ -65,6 +73,10 @@ struct SensingConfig {
   bool capture_on_segments = false;  // also sense at every intermediate cell of the A* segments
   double orbit_radius_m = 40.0;      // orbit baseline: circle radius around the grid centre
   std::uint64_t random_seed = 1;     // random baseline
+  // Stagnation guard (not in the paper, see the file comment): after this many NBVs in a row at the
+  // robot's own cell, that cell is left out of ComputeNBV for tabu_iterations NBV iterations. 0: off.
+  std::uint32_t stagnation_repeats = 3;
+  std::uint32_t tabu_iterations = 10;
   Eigen::Matrix2d R_px2 = Eigen::Matrix2d::Identity() * 0.25;  // measurement noise used by PredictModel
 
   // kInvalidArgument when a field is out of range (invalid_field() names it).
@@ -125,6 +137,7 @@ class SensingExecutive {
   std::size_t predicted_count() const { return predicted_size_; }
   std::uint32_t unreachable_nbv_count() const { return unreachable_nbv_; }
   std::uint32_t split_fallback_count() const { return split_fallbacks_; }
+  std::uint32_t stagnation_count() const { return stagnations_; }
   ReplanReason last_replan_reason() const { return last_replan_; }
   const UpdateReport& last_update() const { return last_update_; }
   Status last_measurement_status() const { return last_measurement_; }
@@ -138,6 +151,8 @@ class SensingExecutive {
   bool locate(const Viewpoint& pose, const GridMapView& map, GridCell* cell) const;
   // ComputeNBV for the policy; false after fail().
   bool choose_goal(const GridMapView& map, GridCell* goal);
+  bool is_tabu(const GridCell& cell) const;
+  void add_tabu(const GridCell& cell);
   bool build_plan(const GridMapView& map, const GridCell& goal);
   void predict_model(const GridCell& goal);
   double compute_utility() const;
@@ -180,6 +195,11 @@ class SensingExecutive {
   std::uint32_t unreachable_nbv_ = 0;
   std::uint32_t split_fallbacks_ = 0;
   std::uint32_t replans_without_image_ = 0;
+  std::uint32_t stagnations_ = 0;
+  std::uint32_t same_cell_nbvs_ = 0;
+  GridCell tabu_cells_[kMaxTabuCells];
+  std::uint32_t tabu_until_[kMaxTabuCells];  // taboo while nbv_iterations_ < this
+  std::size_t tabu_size_ = 0;
   double path_length_cells_ = 0.0;
   double utility_ = 0.0;
   double precision_ = 0.0;

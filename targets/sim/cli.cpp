@@ -78,7 +78,7 @@ int run_cli(int argc, const char* const* argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 1;
   }
-  options.live = !quiet && isatty(fileno(stderr));
+  options.live = !quiet;
   options.measurement = measurement == "oracle" ? MeasurementKind::kOracle : MeasurementKind::kImage;
   if (!parse_planner_policy(planner_name.c_str(), &options.planner)) {
     std::cerr << "vantage-sim: --planner " << planner_name << ": unknown planner\n";

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <vector>
 
+#include <unistd.h>
+
 #include "core/frontend/image_front_end.hpp"
 #include "core/planning/precision_level.hpp"
 #include "core/planning/sensing_executive.hpp"
@@ -102,10 +104,13 @@ struct SimRig {
 void print_progress(const MissionOptions& o, const SensingExecutive& e, double coverage, double path_units,
                     double elapsed_s, bool final_line) {
   if (!o.live) return;
-  std::fprintf(stderr, "\r[%s] images %4u/%u | NBV iterations %3u | coverage %5.1f%% | avg sigma %.5f | path %7.1f | %6.1f s ",
-               to_string(o.planner), e.images(), o.budget, e.nbv_iterations(), 100.0 * coverage, e.precision_level(),
+  // A terminal gets one line rewritten in place; a log file gets a line every 25 images.
+  const bool tty = isatty(fileno(stderr)) != 0;
+  if (!tty && !final_line && e.images() % 25 != 0) return;
+  std::fprintf(stderr, "%s[%s] images %4u/%u | NBV iterations %3u | coverage %5.1f%% | avg sigma %.5f | path %7.1f | %6.1f s ",
+               tty ? "\r" : "", to_string(o.planner), e.images(), o.budget, e.nbv_iterations(), 100.0 * coverage, e.precision_level(),
                path_units, elapsed_s);
-  if (final_line) std::fprintf(stderr, "\n");
+  if (final_line || !tty) std::fprintf(stderr, "\n");
   std::fflush(stderr);
 }
 
@@ -312,6 +317,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.rejected_images = g_executive.rejected_images();
   summary.unreachable_nbv = g_executive.unreachable_nbv_count();
   summary.split_fallbacks = g_executive.split_fallback_count();
+  summary.stagnations = g_executive.stagnation_count();
   const GridMapView map = g_grid.map();
   if (map.free != nullptr) trace->free.assign(map.free, map.free + geo.cell_count());
   summary.wall_seconds = seconds_since(wall_t0);

@@ -60,6 +60,7 @@ struct MissionSummary {
   std::uint32_t rejected_images = 0;
   std::uint32_t unreachable_nbv = 0;
   std::uint32_t split_fallbacks = 0;
+  std::uint32_t stagnations = 0;
   double coverage_target = 0.99;
   double sigma_target = 0.008;
   std::uint32_t budget = 0;

@@ -243,6 +243,7 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"rejected_images\": " << s.rejected_images << ",\n"
       << "  \"unreachable_nbv\": " << s.unreachable_nbv << ",\n"
       << "  \"split_fallbacks\": " << s.split_fallbacks << ",\n"
+      << "  \"stagnations\": " << s.stagnations << ",\n"
       << "  \"coverage_target\": " << s.coverage_target << ",\n"
       << "  \"sigma_target\": " << s.sigma_target << ",\n"
       << "  \"budget\": " << s.budget << ",\n"

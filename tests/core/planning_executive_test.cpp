@@ -243,3 +243,30 @@ TEST_CASE("ExecuteSensing: the robot's own cell marked non-free by the model sti
   REQUIRE(f.exec->next().kind == SensingActionKind::kMoveTo);
   CHECK(f.exec->nbv_cell() == GridCell{18, 10});
 }
+
+TEST_CASE("ExecuteSensing: an NBV that images do not consume is set aside after repeated visits") {
+  Fixture f(GridCell{1, 10});  // the criterion's optimum is the robot's own cell
+  f.measurement.shrink = 1.0;  // images change nothing: the criterion is never consumed
+  f.config.eta_utility = -1.0;
+  f.config.stagnation_repeats = 3;
+  f.config.max_images = 12;
+  REQUIRE(f.begin() == Status::kOk);
+  const MissionLog log = drive(*f.exec);
+  CHECK(f.exec->stagnation_count() >= 1u);
+  REQUIRE(log.captures.size() >= 5u);
+  for (int k = 0; k < 3; ++k) CHECK(log.captures[static_cast<std::size_t>(k)] == f.start_cell);
+  CHECK(log.captures[3] != f.start_cell);
+  CHECK(log.replans.size() >= 5u);
+  // The fourth plan goes to another cell: the robot moves.
+  CHECK(!log.moves.empty());
+
+  Fixture off(GridCell{1, 10});
+  off.measurement.shrink = 1.0;
+  off.config.eta_utility = -1.0;
+  off.config.stagnation_repeats = 0;  // the paper's behaviour: stays
+  off.config.max_images = 12;
+  REQUIRE(off.begin() == Status::kOk);
+  const MissionLog stay = drive(*off.exec);
+  CHECK(stay.moves.empty());
+  CHECK(off.exec->stagnation_count() == 0u);
+}

@@ -1,0 +1,83 @@
+// Short end-to-end missions through vantage-sim's command line (in-process): the small scene, the
+// oracle measurement source, goals scaled to the scene's coarse 160 x 120 camera.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <catch2/catch.hpp>
+
+#include "targets/sim/cli.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+int run(std::vector<std::string> args) {
+  args.insert(args.begin(), "vantage-sim");
+  std::vector<const char*> argv;
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  return vantage::simtarget::run_cli(static_cast<int>(argv.size()), argv.data());
+}
+
+std::string read(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+fs::path fresh_dir(const char* name) {
+  const fs::path dir = fs::temp_directory_path() / (std::string("vantage-targets-") + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+const std::vector<std::string> kSmallMission = {"--scene", VANTAGE_SMALL_SCENE, "--measurement", "oracle",
+                                                 "--gt-samples", "4000", "--oracle-sites", "4000",
+                                                 "--sigma-target", "0.06", "--coverage-target", "0.5", "--quiet"};
+
+}  // namespace
+
+TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the report") {
+  const fs::path out = fresh_dir("goal");
+  std::vector<std::string> args = kSmallMission;
+  args.insert(args.end(), {"--budget", "300", "--out", out.string()});
+  REQUIRE(run(args) == 0);
+  const std::string summary = read(out / "summary.json");
+  CHECK(summary.find("\"reached_goal\": true") != std::string::npos);
+  CHECK(summary.find("\"planner\": \"nbv\"") != std::string::npos);
+  for (const char* file : {"grid.png", "performance.png", "uncertainty.png", "model.ply", "performance.dat"}) {
+    INFO(file);
+    CHECK(fs::file_size(out / file) > 100u);
+  }
+  fs::remove_all(out);
+}
+
+TEST_CASE("vantage-sim: an exhausted budget ends the mission with a partial report") {
+  const fs::path out = fresh_dir("budget");
+  std::vector<std::string> args = kSmallMission;
+  args.insert(args.end(), {"--budget", "8", "--out", out.string()});
+  CHECK(run(args) == 2);
+  const std::string summary = read(out / "summary.json");
+  CHECK(summary.find("\"reached_goal\": false") != std::string::npos);
+  CHECK(summary.find("\"images\": 8,") != std::string::npos);
+  CHECK(summary.find("image budget exhausted") != std::string::npos);
+  fs::remove_all(out);
+}
+
+TEST_CASE("vantage-sim: a report folder that cannot be written is an error before the mission") {
+  const fs::path dir = fresh_dir("unwritable");
+  fs::create_directories(dir);
+  std::ofstream(dir / "a-file") << "x";
+  std::vector<std::string> args = kSmallMission;
+  args.insert(args.end(), {"--out", (dir / "a-file" / "report").string()});
+  CHECK(run(args) == 1);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected") {
+  CHECK(run({"--planner", "greedy", "--quiet"}) == 1);
+  CHECK(run({"--scene", "/nonexistent/scene.toml", "--quiet"}) == 1);
+}
