@@ -1,8 +1,9 @@
 # Guest side of the onboard VM test (busybox sh): runs vantage-onboard on the given configuration and
 # turns its outcome into PASS/FAIL lines for run-vm.sh.
-# usage: sh run_mission.sh <config.yaml> <expected images>
+# usage: sh run_mission.sh <config.yaml> <expected images> <start of the expected "camera:" line>
 config=$1
 images=$2
+camera=$3
 vantage-onboard "$config" >/tmp/onboard.out 2>&1
 rc=$?
 cat /tmp/onboard.out
@@ -10,7 +11,7 @@ if [ "$rc" != 0 ]; then
   echo "FAIL onboard_mission: vantage-onboard exited with $rc: $(tail -n 1 /tmp/onboard.out)"
   exit 1
 fi
-grep -q '^camera: v4l2:/dev/video0 (vivid' /tmp/onboard.out || { echo "FAIL onboard_camera: vivid was not the camera"; exit 1; }
+grep -q "^camera: $camera" /tmp/onboard.out || { echo "FAIL onboard_camera: no 'camera: $camera' line"; exit 1; }
 echo "PASS onboard_camera: $(grep '^camera:' /tmp/onboard.out)"
 grep -q '^vehicle: link up on serial:' /tmp/onboard.out || { echo "FAIL onboard_link: no link on the serial line"; exit 1; }
 echo "PASS onboard_link: $(grep '^vehicle:' /tmp/onboard.out)"
