@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/frontend/iterated_update.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
@@ -52,6 +53,7 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
+  if (ekf_iterations < 1 || ekf_iterations > 20) return Status::kInvalidArgument;
   if (subpixel_iterations < 0 || subpixel_iterations > 20) return Status::kInvalidArgument;
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
@@ -319,7 +321,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     ++report.matched;
     EkfConfig ekf = config_.ekf;
     ekf.R_px2 = measurement_R(fit_covariance);
-    const Status updated = ekf_update(p, observed, view, intrinsics_, ekf, &stats_.ekf);
+    const Status updated = iterated_ekf_update(p, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
     if (ok(updated)) {
       ++report.updated;
       p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
@@ -337,9 +339,14 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
       if ((cell_state_[cell] & kCellUpdated) == 0) continue;
       Primitive& p = pool[cell_primitive_[cell]];
-      if (p.observation_count != config_.normal_refit_observations) continue;
+      // Refit at n, 2n, 4n, 8n updates (n = normal_refit_observations): the normal follows the estimates
+      // as they sharpen, at an amortized cost of a few fits per primitive.
+      const std::uint32_t n = config_.normal_refit_observations;
+      const std::uint32_t count = p.observation_count;
+      if (count != n && count != 2 * n && count != 4 * n && count != 8 * n) continue;
+      const double spacing = config_.seed_stride_px * cell_depth_[cell] / focal;
       std::array<Eigen::Vector3d, 8> neighbours;
-      std::size_t count = 0;
+      std::size_t used = 0;
       for (std::int32_t dy = -1; dy <= 1; ++dy) {
         for (std::int32_t dx = -1; dx <= 1; ++dx) {
           const std::int32_t nx = cx + dx;
@@ -347,13 +354,15 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
           if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
           const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
           if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
-          neighbours[count++] = pool[j].X_world;
+          // Only neighbours known to a fraction of their spacing say anything about the plane.
+          if (!(sigma_bound(pool[j].Sigma_world) < 0.25 * spacing)) continue;
+          neighbours[used++] = pool[j].X_world;
         }
       }
       PlaneFitConfig fit;
-      fit.max_neighbour_distance = 3.0 * config_.seed_stride_px * cell_depth_[cell] / focal;
+      fit.max_neighbour_distance = 3.0 * spacing;
       Eigen::Vector3f normal;
-      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), count), view.position_world, fit,
+      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), used), view.position_world, fit,
                            &normal)) {
         p.normal_world = normal;
       }

@@ -62,6 +62,8 @@ struct FrontEndConfig {
   // see (interpolation, warp and lattice effects). The seed pixel of a new primitive defines the point it
   // stands for, so its own observation gets the floor alone.
   bool adaptive_R = true;
+  // Iterations of the iterated EKF update (core/frontend/iterated_update.hpp); 1 is the plain EKF.
+  int ekf_iterations = 5;
   double match_sigma_floor_px = 0.05;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
@@ -81,7 +83,7 @@ struct FrontEndConfig {
   double occlusion_sigmas = 3.0;
   // h(P) of new primitives (core/criterion/saliency.hpp).
   SaliencyParams saliency;
-  // Normal refit from neighbours once a primitive has this many EKF updates.
+  // Normal refit from well-estimated neighbours when a primitive reaches n, 2n, 4n and 8n EKF updates.
   std::uint32_t normal_refit_observations = 3;
   // Adaptive scale (see README): neighbours in the image merge when both have at least
   // merge_min_observations updates and sqrt(trace Sigma) <= merge_max_sigma, normals within

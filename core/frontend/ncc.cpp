@@ -70,6 +70,28 @@ bool patch_inside(const GrayImageView& image, std::int32_t cx, std::int32_t cy, 
 
 float ncc_at(const GrayImageView& image, std::int32_t cx, std::int32_t cy, const NccTemplate& tmpl) {
   if (tmpl.norm <= 0.0f || tmpl.valid_count < 2) return -1.0f;
+  if (tmpl.valid_count == kPatchPixels) {
+    // Unmasked: integer sums of I and I^2 (exact, and what the compiler vectorizes best).
+    std::int32_t sum_i = 0;
+    std::int32_t sum_ii = 0;
+    float sum_ti = 0.0f;
+    const float* t = tmpl.values.data();
+    for (int dy = 0; dy < kPatchSize; ++dy) {
+      const std::uint8_t* row = image.pixels + (cy - kPatchRadius + dy) * image.stride_bytes + (cx - kPatchRadius);
+      for (int dx = 0; dx < kPatchSize; ++dx) {
+        const std::int32_t value = row[dx];
+        sum_i += value;
+        sum_ii += value * value;
+        sum_ti += t[dx] * static_cast<float>(value);
+      }
+      t += kPatchSize;
+    }
+    const float variance_sum =
+        static_cast<float>(sum_ii) - static_cast<float>(sum_i) * static_cast<float>(sum_i) / kPatchPixels;
+    if (!(variance_sum > 0.01f * kPatchPixels)) return -1.0f;
+    const float ncc = sum_ti / (tmpl.norm * std::sqrt(variance_sum));
+    return ncc > 1.0f ? 1.0f : (ncc < -1.0f ? -1.0f : ncc);
+  }
   // Sums over the valid pixels only; the template is zero-mean there, so sum(t * I) needs no mean.
   float sum_i = 0.0f;
   float sum_ii = 0.0f;

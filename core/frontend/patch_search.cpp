@@ -103,11 +103,14 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
     if (ldlt.info() != Eigen::Success) return false;
     const Eigen::Vector4d step = -ldlt.solve(Jtr);
     if (!step.allFinite()) return false;
-    // Least-squares covariance of the shift: residual variance (image noise plus what the model misses,
-    // 4 parameters fitted) times the shift block of (J^T J)^-1.
-    const double dof = s_1 - 4.0;
-    const Eigen::Matrix4d JtJ_inv = ldlt.solve(Eigen::Matrix4d::Identity());
-    covariance = (dof > 0.0 ? r_r / dof : 0.0) * JtJ_inv.topLeftCorner<2, 2>();
+    const bool last = iteration + 1 == iterations || step.head<2>().norm() < 1e-3;
+    if (last) {
+      // Least-squares covariance of the shift: residual variance (image noise plus what the model misses,
+      // 4 parameters fitted) times the shift block of (J^T J)^-1.
+      const double dof = s_1 - 4.0;
+      const Eigen::Matrix4d JtJ_inv = ldlt.solve(Eigen::Matrix4d::Identity());
+      covariance = (dof > 0.0 ? r_r / dof : 0.0) * JtJ_inv.topLeftCorner<2, 2>();
+    }
     d += step.head<2>();
     alpha += step(2);
     beta += step(3);
@@ -142,11 +145,15 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   if (w < 3 || h < 3 || static_cast<std::size_t>(w) * static_cast<std::size_t>(h) > scratch.size()) {
     return MatchOutcome::kNoRoom;
   }
+  // NCC evaluated lazily: only the candidates inside the ellipse and their 8-neighbours are ever needed.
   float* ncc = scratch.data();
-  for (std::int32_t y = y0; y <= y1; ++y) {
-    for (std::int32_t x = x0; x <= x1; ++x) ncc[(y - y0) * w + x - x0] = ncc_at(image, x, y, tmpl);
-  }
-  auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - y0) * w + x - x0]; };
+  constexpr float kUnset = -3.0f;
+  for (std::int32_t i = 0; i < w * h; ++i) ncc[i] = kUnset;
+  auto value = [&](std::int32_t x, std::int32_t y) {
+    float& v = ncc[(y - y0) * w + x - x0];
+    if (v == kUnset) v = ncc_at(image, x, y, tmpl);
+    return v;
+  };
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
     const float c = value(x, y);
     for (std::int32_t dy = -1; dy <= 1; ++dy) {
@@ -156,6 +163,10 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     }
     return true;
   };
+  auto inside = [&](std::int32_t x, std::int32_t y) {
+    const Eigen::Vector2d d(x - query.predicted_px.x(), y - query.predicted_px.y());
+    return (x == cx && y == cy) || d.dot(query.S_inv * d) <= query.gate_chi2;
+  };
   // Best local maximum inside the gate ellipse (the pixel nearest the prediction always counts as inside,
   // so a tiny ellipse between pixel centres still has a candidate).
   float best = -2.0f;
@@ -163,9 +174,7 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   std::int32_t by = 0;
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
     for (std::int32_t x = x0 + 1; x < x1; ++x) {
-      const Eigen::Vector2d d(x - query.predicted_px.x(), y - query.predicted_px.y());
-      const bool inside = (x == cx && y == cy) || d.dot(query.S_inv * d) <= query.gate_chi2;
-      if (!inside || value(x, y) <= best || !is_local_max(x, y)) continue;
+      if (!inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
       best = value(x, y);
       bx = x;
       by = y;
@@ -173,11 +182,13 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   }
   *best_ncc = best;
   if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
-  // Uniqueness over every interior local maximum of the box, inside the ellipse or not.
+  // Uniqueness over the other local maxima inside the ellipse: the region the prior allows.
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
     for (std::int32_t x = x0 + 1; x < x1; ++x) {
       if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
-      if (value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) return MatchOutcome::kAmbiguous;
+      if (inside(x, y) && value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) {
+        return MatchOutcome::kAmbiguous;
+      }
     }
   }
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));

@@ -81,9 +81,9 @@ Figures evaluate(const FrontEndConfig& config, std::uint32_t min_updates, TruePo
     nees.push_back(e.dot(p.Sigma_world.ldlt().solve(e)));
     if (std::getenv("FE_DIAG") != nullptr && nees.back() > 16.27) {
       const Eigen::Vector3d ray = (p.X_world - creating.position_world).normalized();
-      std::printf("    outlier nees %.1f obs %u view %u uv (%.2f %.2f) seed (%.0f %.0f) e %.3f along-ray %.3f sigma_ray %.3f flags %u\n",
+      std::printf("    outlier nees %.1f obs %u view %u uv (%.2f %.2f) seed (%.0f %.0f) e %.3f along-ray %.3f sigma_ray %.3f flags %u nx %.3f\n",
                   nees.back(), p.observation_count, p.creating_view, uv.x(), uv.y(), seed.x(), seed.y(), e.norm(),
-                  e.dot(ray), std::sqrt(ray.dot(p.Sigma_world * ray)), p.flags);
+                  e.dot(ray), std::sqrt(ray.dot(p.Sigma_world * ray)), p.flags, p.normal_world.x());
     }
     sum_sq_point += e.squaredNorm();
     const double d = surface_distance(p.X_world);
@@ -132,6 +132,11 @@ void run(const sim::RaycastCamera& camera, const FrontEndConfig& config, const S
   UpdateReport report;
   REQUIRE(ok(g_front_end.initialize(va.as_const(), sequence.views[0], vb.as_const(), sequence.views[1], g_pool, &report)));
   std::printf("  init: spawned %u\n", report.spawned);
+  if (std::getenv("FE_TRUE_NORMAL") != nullptr) {  // diagnosis only: the plane's true normal
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      if (g_pool.is_alive(i)) g_pool[i].normal_world = Eigen::Vector3f::UnitX();
+    }
+  }
   *matched = 0.0;
   *predicted = 0.0;
   for (std::size_t i = 2; i < sequence.views.size(); ++i) {
@@ -181,6 +186,7 @@ TEST_CASE("front end on a textured plane: NEES consistent, accurate, most matche
 
   FrontEndConfig config;
   if (const char* sigma = std::getenv("FE_SIGMA")) config.ekf.R_px2 = Eigen::Matrix2d::Identity() * std::pow(std::atof(sigma), 2);
+  if (const char* warp = std::getenv("FE_WARP")) config.warp_min_deviation = std::atof(warp);
   double matched = 0.0;
   double predicted = 0.0;
   run(camera, config, sequence, &matched, &predicted);
