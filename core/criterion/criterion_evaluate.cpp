@@ -204,7 +204,10 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
       block_has_area[i] = radius > 0.0f ? 1 : 0;
       block_pixel[i] = pixel;
       block_write_pixel[i] = fast_splat ? pixel : spare;
-      block_general[i] = (front & !fast_splat) ? 1 : 0;
+      // Larger or off-centre footprints go to the general splat, unless the square misses the image.
+      const bool overlaps = (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < u_max) &
+                            (v - radius_px < v_max);
+      block_general[i] = (front & overlaps & !fast_splat) ? 1 : 0;
       block_member[i] = member ? 1 : 0;
     }
     // Scalar, branch-free: the single-pixel splats, the member entries, and the list of lanes that need
