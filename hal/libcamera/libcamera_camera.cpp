@@ -68,17 +68,26 @@ std::string LibcameraCamera::open(const LibcameraConfig& config) {
 
   manager_ = std::make_unique<libcamera::CameraManager>();
   if (manager_->start() != 0) return fail("the camera manager did not start");
-  const auto cameras = manager_->cameras();
-  if (cameras.empty()) return fail("no cameras found");
-  if (config_.camera_id.empty()) {
-    camera_ = cameras.front();
-  } else {
-    camera_ = manager_->get(config_.camera_id);
-    if (!camera_) {
-      std::string ids;
-      for (const auto& c : cameras) ids += (ids.empty() ? "" : ", ") + c->id();
-      return fail("no such camera (present: " + ids + ")");
+  {
+    // The list holds shared_ptrs to every camera: it must be gone before any failure path stops the
+    // manager (a Camera outliving its CameraManager is a use after free).
+    std::string missing;
+    {
+      const std::vector<std::shared_ptr<libcamera::Camera>> cameras = manager_->cameras();
+      if (cameras.empty()) {
+        missing = "no cameras found";
+      } else if (config_.camera_id.empty()) {
+        camera_ = cameras.front();
+      } else {
+        camera_ = manager_->get(config_.camera_id);
+        if (!camera_) {
+          std::string ids;
+          for (const auto& c : cameras) ids += (ids.empty() ? "" : ", ") + c->id();
+          missing = "no such camera (present: " + ids + ")";
+        }
+      }
     }
+    if (!missing.empty()) return fail(missing);
   }
   std::snprintf(name_, sizeof name_, "libcamera:%s", camera_->id().c_str());
   manager_->cameraRemoved.connect(this, &LibcameraCamera::on_camera_removed);
