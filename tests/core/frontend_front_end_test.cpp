@@ -273,3 +273,80 @@ TEST_CASE("initialize and update do not allocate") {
   REQUIRE(ok(status));
   CHECK(report.updated > 0u);
 }
+
+namespace {
+
+// Puts every primitive exactly on the plane x = offset(seed) with a small covariance, the true normal and
+// the given update count, as if many views had refined it.
+template <typename Offset>
+void make_well_estimated(const Scene& scene, const Viewpoint& first, std::uint32_t updates, Offset offset) {
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    Primitive& p = g_pool[i];
+    Eigen::Vector2d uv;
+    REQUIRE(ok(project(p.X_world, first, scene.k, &uv)));
+    const Eigen::Vector2d seed(std::round((uv.x() - 2.0) / 4.0) * 4.0 + 2.0, std::round((uv.y() - 2.0) / 4.0) * 4.0 + 2.0);
+    REQUIRE(scene.plane.intersect(seed, first, scene.k, &p.X_world));
+    p.X_world.x() += offset(seed);
+    p.Sigma_world = Eigen::Matrix3d::Identity() * 1e-4;
+    p.normal_world = Eigen::Vector3f::UnitX();
+    p.observation_count = updates;
+  }
+}
+
+}  // namespace
+
+TEST_CASE("adaptive scale: coplanar, well-estimated neighbours merge into one larger primitive") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  make_well_estimated(scene, first, 5, [](const Eigen::Vector2d&) { return 0.0; });
+  float radius_before = 0.0f;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (g_pool.is_alive(i)) radius_before = std::max(radius_before, g_pool[i].radius);
+  }
+  const std::size_t before = g_pool.size();
+  const Viewpoint third = vantage::test::looking_at_origin({39.8, 1.0, 1.0});
+  const auto image = scene.render(third);
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+  CHECK(report.merged > 100u);
+  CHECK(g_pool.size() == before - report.merged + report.spawned);
+  int merged_flags = 0;
+  const double cap = g_front_end.config().merge_max_radius_px;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i) || (g_pool[i].flags & primitive_flags::kMerged) == 0) continue;
+    ++merged_flags;
+    const Primitive& p = g_pool[i];
+    CHECK(p.radius > radius_before);  // grew to cover the absorbed neighbour
+    const double depth = (third.R_world_cam.transpose() * (p.X_world - third.position_world)).z();
+    CHECK(p.radius * scene.k.fx_px / depth <= cap + 1e-6);
+    CHECK(std::abs(p.X_world.x()) < 0.05);  // the survivor's own estimate, still on the plane
+  }
+  CHECK(merged_flags > 50);
+}
+
+TEST_CASE("adaptive scale: neighbours off each other's plane, or not yet well estimated, do not merge") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint third = vantage::test::looking_at_origin({39.8, 1.0, 1.0});
+  const auto image = scene.render(third);
+  SECTION("a checkerboard of steps 30 sigma high: no two neighbours coplanar") {
+    initialize_on_plane(scene, first, second);
+    make_well_estimated(scene, first, 5, [](const Eigen::Vector2d& seed) {
+      return ((static_cast<int>(seed.x()) / 4 + static_cast<int>(seed.y()) / 4) % 2) * 0.3;
+    });
+    UpdateReport report;
+    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+    CHECK(report.merged == 0u);
+  }
+  SECTION("too few updates") {
+    initialize_on_plane(scene, first, second);
+    make_well_estimated(scene, first, 1, [](const Eigen::Vector2d&) { return 0.0; });
+    UpdateReport report;
+    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+    CHECK(report.merged == 0u);
+  }
+}
