@@ -19,11 +19,15 @@ die() { echo "fetch-kernels: $*" >&2; exit 1; }
 
 # The kernel ABI and version come from the installed headers metapackage, e.g.
 # "linux-headers-6.1.0-56-amd64 (= 6.1.192-2)".
-headers_dep=$(dpkg-query -W -f='${Depends}' linux-headers-amd64 2>/dev/null) ||
-  die "linux-headers-amd64 is not installed (run: bash toolchains/install-deps.sh)"
-abi=$(sed -n 's/^linux-headers-\([0-9][^ ]*\)-amd64 (= .*$/\1/p' <<<"$headers_dep")
-version=$(sed -n 's/^linux-headers-[^ ]* (= \([^)]*\))$/\1/p' <<<"$headers_dep")
-[ -n "$abi" ] && [ -n "$version" ] || die "cannot read the kernel ABI from linux-headers-amd64's Depends: '$headers_dep'"
+read_headers_version() {
+  local headers_dep
+  headers_dep=$(dpkg-query -W -f='${Depends}' linux-headers-amd64 2>/dev/null) ||
+    die "linux-headers-amd64 is not installed (run: bash toolchains/install-deps.sh)"
+  abi=$(sed -n 's/^linux-headers-\([0-9][^ ]*\)-amd64 (= .*$/\1/p' <<<"$headers_dep")
+  version=$(sed -n 's/^linux-headers-[^ ]* (= \([^)]*\))$/\1/p' <<<"$headers_dep")
+  [ -n "$abi" ] && [ -n "$version" ] || die "cannot read the kernel ABI from linux-headers-amd64's Depends: '$headers_dep'"
+}
+read_headers_version
 
 if ! dpkg --print-foreign-architectures | grep -qx arm64; then
   log "adding the arm64 architecture (for Debian's arm64 kernel and busybox)"
@@ -38,16 +42,27 @@ trap 'rm -rf "$tmp"' EXIT
 download() {  # download <package:arch=version>: into $tmp; one apt-get update and retry if the lists are old
   (cd "$tmp" && apt-get download -q "$1" >/dev/null 2>&1) && return 0
   $SUDO apt-get update -qq
-  (cd "$tmp" && apt-get download -q "$1" >/dev/null) ||
-    die "cannot download $1 from Debian's archive (a newer kernel may have replaced it: run 'apt-get install linux-headers-amd64' to upgrade the headers, then this again)"
+  (cd "$tmp" && apt-get download -q "$1" >/dev/null 2>&1)
 }
+
+# The archive keeps only the newest kernel of a series: when the installed headers' kernel is gone from
+# it, move the headers (and so vimc's build) to the newest kernel, whose image can then be fetched.
+if [ ! -f "$CACHE/linux-image-$abi-amd64_$version/.complete" ] &&
+   ! (cd "$tmp" && apt-get download -q --print-uris "linux-image-$abi-amd64:amd64=$version" >/dev/null 2>&1); then
+  $SUDO apt-get update -qq
+  if ! (cd "$tmp" && apt-get download -q --print-uris "linux-image-$abi-amd64:amd64=$version" >/dev/null 2>&1); then
+    log "linux-image-$abi-amd64=$version is no longer in the archive: upgrading linux-headers-amd64"
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends linux-headers-amd64 >/dev/null
+    read_headers_version
+  fi
+fi
 
 for arch in amd64 arm64; do
   pkg="linux-image-$abi-$arch"
   dir="$CACHE/${pkg}_$version"
   if [ ! -f "$dir/.complete" ]; then
     log "unpacking $pkg=$version into $dir"
-    download "$pkg:$arch=$version"
+    download "$pkg:$arch=$version" || die "cannot download $pkg:$arch=$version from Debian's archive"
     $SUDO rm -rf "$dir"
     $SUDO mkdir -p "$dir"
     # Only the kernel and the media modules: the VM tests need nothing else, and it saves ~400 MB.
@@ -62,7 +77,7 @@ done
 
 if [ ! -x "$CACHE/busybox-arm64/bin/busybox" ]; then
   log "unpacking busybox-static:arm64 into $CACHE/busybox-arm64"
-  download "busybox-static:arm64"
+  download "busybox-static:arm64" || die "cannot download busybox-static:arm64 from Debian's archive"
   $SUDO rm -rf "$CACHE/busybox-arm64"
   $SUDO mkdir -p "$CACHE/busybox-arm64"
   dpkg-deb --fsys-tarfile "$tmp"/busybox-static_*_arm64.deb | $SUDO tar -x -C "$CACHE/busybox-arm64" ./bin/busybox
