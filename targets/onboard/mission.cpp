@@ -33,6 +33,12 @@ SensingExecutive g_executive(g_pool, g_front_end, g_grid, nullptr);
 FrameBuffer g_first_frame;
 FrameBuffer g_frame;
 
+std::string seconds_text(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g s", s);
+  return text;
+}
+
 struct MissionError {
   int code;
   std::string text;
@@ -54,8 +60,8 @@ class Rig {
       motion_.update(0.02);
       if (motion_.fault() == hal::MotionFault::kLinkLost) {
         throw MissionError{kExitVehicle, "vehicle: link lost (no heartbeat for " +
-                                             std::to_string(config_.mavlink.motion.link_loss_timeout_s) +
-                                             " s): the vehicle was told to hold"};
+                                             seconds_text(config_.mavlink.motion.link_loss_timeout_s) +
+                                             "): the vehicle was told to hold"};
       }
       if (motion_.arrived()) return;
       if (clock_.now_ns() > deadline) throw MissionError{kExitVehicle, "vehicle: did not reach a viewpoint within arrive_timeout_s"};
@@ -103,7 +109,7 @@ class Rig {
       if (motion_.link_up() && motion_.current_pose().valid) return;
       if (motion_.fault() == hal::MotionFault::kLinkLost) {
         throw MissionError{kExitVehicle, "vehicle: no heartbeat and pose within " +
-                                             std::to_string(config_.mavlink.motion.link_loss_timeout_s) + " s on " +
+                                             seconds_text(config_.mavlink.motion.link_loss_timeout_s) + " on " +
                                              config_.mavlink.endpoint};
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));

@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # SITL on loopback: vantage-onboard (camera: sim, rendering at the pose the vehicle reports) flies a short
 # NBV mission against the node-mavlink vehicle peer over UDP on 127.0.0.1.
-# usage: sitl_mission.sh <vantage-onboard> <node> <peer-dir> <work-dir> [max-images]
+# With "link-loss" the vehicle falls silent mid-mission: vantage-onboard must stop with exit code 4 and
+# say that the link was lost.
+# usage: sitl_mission.sh <vantage-onboard> <node> <peer-dir> <work-dir> [max-images] [link-loss]
 set -euo pipefail
-onboard=$1 node=$2 peer_dir=$3 work=$4 images=${5:-8}
+onboard=$1 node=$2 peer_dir=$3 work=$4 images=${5:-8} mode=${6:-mission}
+silent=()
+[ "$mode" = link-loss ] && silent=(--silent-after-s 5)
 [ -f "$peer_dir/node_modules/node-mavlink/package.json" ] || { echo "FAIL: run tests/mavlink_peer/install.sh"; exit 1; }
 mkdir -p "$work"
 peer_out="$work/peer.out"
 : >"$peer_out"  # exists before the peer opens it (the loop below reads it)
 # The peer starts off the first view (NED x=-35 north, y=3 east, z=0) and flies at 20 units/s.
-"$node" "$peer_dir/peer.js" --duration-s 58 --speed-mps 20 --start-ned -35,3,0 </dev/null >"$peer_out" 2>&1 &
+"$node" "$peer_dir/peer.js" --duration-s 58 --speed-mps 20 --start-ned -35,3,0 "${silent[@]}" </dev/null >"$peer_out" 2>&1 &
 peer_pid=$!
 trap 'kill "$peer_pid" 2>/dev/null || true; wait "$peer_pid" 2>/dev/null || true' EXIT
 port=""
@@ -25,7 +29,7 @@ camera:
 mavlink:
   endpoint: udp:127.0.0.1:$port
   arrive_timeout_s: 20
-  link_loss_timeout_s: 3
+  link_loss_timeout_s: 1.5
 mission:
   max_images: $images
 EOF
@@ -35,6 +39,12 @@ rc=$?
 set -e
 cat "$work/onboard.out"
 fail() { echo "FAIL: $*"; echo "--- peer (last lines)"; tail -5 "$peer_out"; exit 1; }
+if [ "$mode" = link-loss ]; then
+  [ "$rc" -eq 4 ] || fail "vantage-onboard exited with $rc, not 4, when the vehicle fell silent"
+  grep -q '^vantage-onboard: vehicle: link lost' "$work/onboard.out" || fail "no 'vehicle: link lost' line"
+  echo "PASS: SITL link loss reported (exit 4)"
+  exit 0
+fi
 [ "$rc" -eq 0 ] || fail "vantage-onboard exited with $rc"
 grep -q '^mission done' "$work/onboard.out" || fail "no 'mission done' line"
 captured=$(grep -c '^image ' "$work/onboard.out" || true)

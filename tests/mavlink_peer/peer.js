@@ -4,7 +4,8 @@
 // for the companion to speak (it replies to the last sender). It sends HEARTBEAT at 1 Hz and its pose
 // (LOCAL_POSITION_NED + ATTITUDE, or ODOMETRY) at --rate-hz, flies toward the last
 // SET_POSITION_TARGET_LOCAL_NED at --speed-mps, answers COMMAND_LONG with COMMAND_ACK, and prints one JSON
-// line per message it received so a test can check what our encoder sent. It exits by itself after
+// line per message it received so a test can check what our encoder sent. --silent-after-s T stops all
+// sending T seconds after the companion first spoke (link-loss tests). It exits by itself after
 // --duration-s. Loopback only.
 'use strict';
 
@@ -65,6 +66,7 @@ const state = {
   last_sign_ts: 0,
 };
 let remote = null;  // the companion, learnt from the first datagram (the companion speaks first)
+let first_contact_ms = -1;  // --silent-after-s counts from here
 
 function emit(event) {
   process.stdout.write(JSON.stringify(event) + '\n');
@@ -230,6 +232,7 @@ reader.on('data', packet => {
 socket.on('message', (buffer, rinfo) => {
   if (rinfo.address !== '127.0.0.1') return;  // loopback only
   remote = { address: rinfo.address, port: rinfo.port };
+  if (first_contact_ms < 0) first_contact_ms = Date.now();
   input.write(buffer);
 });
 
@@ -242,7 +245,8 @@ socket.bind(0, '127.0.0.1', () => {
     const now_ms = Date.now();
     step((now_ms - last_ms) / 1000);
     last_ms = now_ms;
-    const silent = args.silent_after_s >= 0 && now_ms - start_ms >= args.silent_after_s * 1000;
+    const silent = args.silent_after_s >= 0 && first_contact_ms >= 0 &&
+                   now_ms - first_contact_ms >= args.silent_after_s * 1000;
     if (!remote || silent) return;
     if (now_ms - last_heartbeat_ms >= 1000) {
       send(heartbeat());
