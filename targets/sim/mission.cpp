@@ -159,10 +159,11 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     g_measurement.target = oracle.get();
   } else {
     FrontEndConfig fc;
-    // Depth range of the epipolar search: anything the grid's cells can see (the planner goes close).
+    // Depth range of the epipolar search: from close to the object (the planner goes close) to the
+    // far grid corners. Wider ranges (down to 1 unit) made the two-view initialization find nothing.
     const double half_extent = 0.5 * geo.cells_per_side * geo.cell_size_m;
-    fc.depth_min = 1.0;
-    fc.depth_max = std::sqrt(2.0) * half_extent + scene.viewing_distance * 0.5;
+    fc.depth_min = 0.125 * scene.viewing_distance;
+    fc.depth_max = std::sqrt(2.0) * half_extent + 0.25 * scene.viewing_distance;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;

@@ -362,7 +362,9 @@ bool write_report(const std::string& dir, const MissionTrace& trace, const Missi
      << "'nbv.dat' using 1:2 with points pt 3 ps 2 lw 2 lc rgb 'magenta' title 'NBVs', "
      << "'nbv.dat' using 1:2:(sprintf('%d',$3)) with labels offset 1,1 tc rgb 'magenta' notitle\n"
      << "unset multiplot\n"
-     << "reset\n"
+     << "reset\n";
+  if (!trace.images.empty()) {  // no image after the initial pair: no curve to draw
+    gp
      << "set terminal pngcairo size 1000,800 font ',10'\n"
      << "set output 'performance.png'\n"
      << "set multiplot layout 2,1\n"
@@ -377,6 +379,7 @@ bool write_report(const std::string& dir, const MissionTrace& trace, const Missi
      << "plot 'performance.dat' using 1:3 with lines lw 2 title 'U(M_{nu*}, M)', "
      << "'replans.dat' using 1:3 with points pt 7 ps 1 lc rgb 'red' title 'replan (U after PredictModel)'\n"
      << "unset multiplot\n";
+  }
   note(write_text(file("report.gp"), gp.str(), &e), e);
   std::string quoted;  // single-quoted for the shell
   for (const char c : dir) quoted += (c == '\'') ? std::string("'\\''") : std::string(1, c);
