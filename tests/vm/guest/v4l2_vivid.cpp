@@ -1,6 +1,7 @@
 // Guest program: vantage's V4L2 driver (hal/v4l2) against the kernel's vivid test driver, in the VM.
 //  - captures in several pixel formats and sizes, converts to gray, and checks each frame against a
-//    golden hash (vivid's test pattern is deterministic once its OSD text is off) and frame to frame;
+//    golden hash (vivid's test pattern is deterministic once its OSD text is off) and frame to frame,
+//    and the YUYV gray against the Y bytes of a frame read() without our driver;
 //  - asks for a size vivid lacks, MJPEG and a missing node, and expects a clear error each;
 //  - unbinds vivid from its driver mid-stream and expects kDeviceLost, a clean failure to reopen while it
 //    is gone, and a working reopen() once it is bound again.
@@ -147,6 +148,46 @@ std::map<std::string, std::string> read_goldens(const char* path) {
     if (fields >> device >> format >> size >> hash) goldens[device + " " + format + " " + size] = hash;
   }
   return goldens;
+}
+
+// An independent reference for the golden hashes: a YUYV frame read with plain read() I/O (no driver of
+// ours), hashed over its Y bytes. Empty on failure, with the reason in *error.
+std::string reference_yuyv_hash(const char* device, std::int32_t width_px, std::int32_t height_px,
+                                std::string* error) {
+  const int fd = ::open(device, O_RDWR);
+  if (fd < 0) {
+    *error = std::string(device) + ": " + std::strerror(errno);
+    return {};
+  }
+  v4l2_format format{};
+  format.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+  format.fmt.pix.width = static_cast<std::uint32_t>(width_px);
+  format.fmt.pix.height = static_cast<std::uint32_t>(height_px);
+  format.fmt.pix.pixelformat = V4L2_PIX_FMT_YUYV;
+  format.fmt.pix.field = V4L2_FIELD_NONE;
+  if (::ioctl(fd, VIDIOC_S_FMT, &format) != 0 || format.fmt.pix.pixelformat != V4L2_PIX_FMT_YUYV ||
+      format.fmt.pix.width != static_cast<std::uint32_t>(width_px) ||
+      format.fmt.pix.height != static_cast<std::uint32_t>(height_px)) {
+    *error = std::string("VIDIOC_S_FMT YUYV: ") + std::strerror(errno);
+    ::close(fd);
+    return {};
+  }
+  std::vector<std::uint8_t> frame(format.fmt.pix.sizeimage);
+  const ssize_t n = ::read(fd, frame.data(), frame.size());
+  ::close(fd);
+  const std::size_t stride = format.fmt.pix.bytesperline;
+  if (n < static_cast<ssize_t>(stride * static_cast<std::size_t>(height_px))) {
+    *error = "read() gave " + std::to_string(n) + " bytes: " + std::strerror(errno);
+    return {};
+  }
+  std::uint64_t h = 14695981039346656037ull;
+  for (std::int32_t y = 0; y < height_px; ++y) {
+    for (std::int32_t x = 0; x < width_px; ++x) {
+      h ^= frame[static_cast<std::size_t>(y) * stride + 2 * static_cast<std::size_t>(x)];
+      h *= 1099511628211ull;
+    }
+  }
+  return hex(h);
 }
 
 // Frame buffer big enough for every case below (1280x720).
@@ -390,6 +431,19 @@ int main(int argc, char** argv) {
   } else {
     fail("v4l2_same_luma", "YUYV " + hashes["YUYV 640x480"] + ", UYVY " + hashes["UYVY 640x480"] + ", NV12 " +
                                hashes["NV12 640x480"] + " differ");
+  }
+
+  // The goldens are our driver's output; this ties them to the raw Y bytes the kernel produced.
+  std::string reference_error;
+  const std::string reference = reference_yuyv_hash(device, 640, 480, &reference_error);
+  if (reference.empty()) {
+    fail("v4l2_reference_YUYV_640x480", "read() I/O: " + reference_error);
+  } else if (reference != hashes["YUYV 640x480"]) {
+    fail("v4l2_reference_YUYV_640x480", "driver gray " + hashes["YUYV 640x480"] + ", Y bytes of a frame read() " +
+                                            "without our driver " + reference);
+  } else {
+    pass("v4l2_reference_YUYV_640x480", "driver gray equals the Y bytes of a frame read() without our driver (" +
+                                            reference + ")");
   }
 
   check_missing(device);
