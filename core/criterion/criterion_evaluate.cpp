@@ -2,7 +2,7 @@
 #include <cmath>
 
 #include "core/criterion/criterion_model.hpp"
-#include "core/criterion/fast_math.hpp"
+#include "core/criterion/block_kernel.hpp"
 
 namespace vantage {
 
@@ -85,149 +85,48 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
   scratch.clusters_kept_ = kept;
 
   // Level 2: primitives of the kept clusters, kClusterSize at a time through a vectorizable block.
-  const float r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
-  const float r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
-  const float r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
-  const float cam_x = camera.x(), cam_y = camera.y(), cam_z = camera.z();
-  const float fx = cam.fx_px, fy = cam.fy_px, cx = cam.cx_px, cy = cam.cy_px;
-  const float inv_fx = 1.0f / fx, inv_fy = 1.0f / fy;
-  const float f_max = fx > fy ? fx : fy;
-  const float u_max = static_cast<float>(cam.width_px) - 0.5f;
-  const float v_max = static_cast<float>(cam.height_px) - 0.5f;
-  const float u_clamp = static_cast<float>(cam.width_px);
-  const float v_clamp = static_cast<float>(cam.height_px);
-  const std::int32_t width = cam.width_px;
-  const float grazing2 = kGrazingCosine * kGrazingCosine;
-  const float tolerance_radii = depth.tolerance_radii();
-  const float log2_fxfy = setup.log2_fxfy;
+  BlockConstants kc;
+  kc.r00 = R(0, 0), kc.r01 = R(0, 1), kc.r02 = R(0, 2);
+  kc.r10 = R(1, 0), kc.r11 = R(1, 1), kc.r12 = R(1, 2);
+  kc.r20 = R(2, 0), kc.r21 = R(2, 1), kc.r22 = R(2, 2);
+  kc.cam_x = camera.x(), kc.cam_y = camera.y(), kc.cam_z = camera.z();
+  kc.fx = cam.fx_px, kc.fy = cam.fy_px, kc.cx = cam.cx_px, kc.cy = cam.cy_px;
+  kc.inv_fx = 1.0f / kc.fx, kc.inv_fy = 1.0f / kc.fy;
+  kc.f_max = kc.fx > kc.fy ? kc.fx : kc.fy;
+  kc.u_max = static_cast<float>(cam.width_px) - 0.5f;
+  kc.v_max = static_cast<float>(cam.height_px) - 0.5f;
+  kc.u_clamp = static_cast<float>(cam.width_px);
+  kc.v_clamp = static_cast<float>(cam.height_px);
+  kc.width = cam.width_px;
+  kc.spare = depth.spare_index();
+  kc.tolerance_radii = depth.tolerance_radii();
+  kc.log2_fxfy = setup.log2_fxfy;
 
-  const std::int32_t spare = depth.spare_index();
-
-  // Per block of kClusterSize lanes: geometry for the splat and the depth test of each lane, the fast
-  // single-pixel splat as a branch-free (pixel, value) pair (lanes that must not write aim at the
-  // buffer's spare cell), and the lane's weight w C (computed on every lane, kept on members only).
-  alignas(64) float block_u[kClusterSize];
-  alignas(64) float block_v[kClusterSize];
-  alignas(64) float block_iz[kClusterSize];
-  alignas(64) float block_du[kClusterSize];
-  alignas(64) float block_dv[kClusterSize];
-  alignas(64) float block_rpx[kClusterSize];
-  alignas(64) float block_iz_pixel[kClusterSize];
-  alignas(64) float block_threshold[kClusterSize];
-  alignas(64) float block_contribution[kClusterSize];
-  alignas(64) std::int32_t block_pixel[kClusterSize];
-  alignas(64) std::int32_t block_write_pixel[kClusterSize];
-  alignas(64) std::int32_t block_general[kClusterSize];
-  alignas(64) std::int32_t block_member[kClusterSize];
-  alignas(64) std::int32_t block_has_area[kClusterSize];
+  BlockOutput out;
   std::uint32_t general_lanes[kClusterSize];
-
   float* __restrict buffer = depth.inverse_depth_data();
-  // The block loop uses & on comparisons, not &&: short-circuit control flow stops the vectorizer.
   std::size_t entries = 0;
   for (std::size_t k = 0; k < kept; ++k) {
     const std::size_t base = static_cast<std::size_t>(scratch.clusters_[k]) * kClusterSize;
-    const float* __restrict px = arrays_.x + base;
-    const float* __restrict py = arrays_.y + base;
-    const float* __restrict pz = arrays_.z + base;
-    const float* __restrict nx = arrays_.nx + base;
-    const float* __restrict ny = arrays_.ny + base;
-    const float* __restrict nz = arrays_.nz + base;
-    const float* __restrict s00 = arrays_.s00 + base;
-    const float* __restrict s01 = arrays_.s01 + base;
-    const float* __restrict s02 = arrays_.s02 + base;
-    const float* __restrict s11 = arrays_.s11 + base;
-    const float* __restrict s12 = arrays_.s12 + base;
-    const float* __restrict s22 = arrays_.s22 + base;
-    const float* __restrict lwa = arrays_.log2_wa + base;
-    const float* __restrict hh = arrays_.h + base;
-    const float* __restrict rr = arrays_.radius + base;
-    for (std::size_t i = 0; i < kClusterSize; ++i) {
-      const float ux = px[i] - cam_x;
-      const float uy = py[i] - cam_y;
-      const float uz = pz[i] - cam_z;
-      const float xc = r00 * ux + r01 * uy + r02 * uz;
-      const float yc = r10 * ux + r11 * uy + r12 * uz;
-      const float zc = r20 * ux + r21 * uy + r22 * uz;
-      const float facing = -(nx[i] * ux + ny[i] * uy + nz[i] * uz);  // n . (camera - X)
-      const float ncx = r00 * nx[i] + r01 * ny[i] + r02 * nz[i];
-      const float ncy = r10 * nx[i] + r11 * ny[i] + r12 * nz[i];
-      const float dist2 = ux * ux + uy * uy + uz * uz;
-      const bool front = (zc > kNearDepth) & (facing > 0.0f);
-      // Divisions, logs and roots run on every lane, unmasked: a lane behind the camera or facing away
-      // computes garbage that the masks drop. This file is compiled with -fno-trapping-math and
-      // -fno-math-errno (core/CMakeLists.txt): otherwise GCC will not speculate them and leaves the
-      // loop scalar.
-      const float inv_z = 1.0f / zc;
-      const float u = fx * xc * inv_z + cx;
-      const float v = fy * yc * inv_z + cy;
-      // 1/z gradients of the disc's plane n_cam . X = k with k = -facing (see splat_math).
-      const bool grazing = facing * facing < grazing2 * dist2;
-      const float minus_inv_facing = -1.0f / facing;
-      const float inv_k = grazing ? 0.0f : minus_inv_facing;
-      const float du = ncx * inv_k * inv_fx;
-      const float dv = ncy * inv_k * inv_fy;
-      const float radius = rr[i];
-      const float radius_px = radius * f_max * inv_z;
-      const bool in_image = (u >= -0.5f) & (v >= -0.5f) & (u < u_max) & (v < v_max);
-      float uc = u > -1.0f ? u : -1.0f;
-      uc = uc < u_clamp ? uc : u_clamp;
-      float vc = v > -1.0f ? v : -1.0f;
-      vc = vc < v_clamp ? vc : v_clamp;
-      const std::int32_t pi = static_cast<std::int32_t>(uc + 0.5f);
-      const std::int32_t pj = static_cast<std::int32_t>(vc + 0.5f);
-      const std::int32_t pixel = pj * width + pi;
-      const float iz_pixel = inv_z + du * (static_cast<float>(pi) - u) + dv * (static_cast<float>(pj) - v);
-      // splat_math::visibility_threshold, inlined: one division, and the select on its sign happens in
-      // the append loop (<= 0 means the tolerance reaches the camera: always visible).
-      const float threshold = iz_pixel / (1.0f - kRelativeDepthTolerance - tolerance_radii * radius * iz_pixel);
-      // f = |Sigma v|: with Sigma' = Sigma / scale, f' = |Sigma' u| / |u|, u = X - x (never negative in
-      // float, unlike a stored Sigma^2).
-      const float su_x = s00[i] * ux + s01[i] * uy + s02[i] * uz;
-      const float su_y = s01[i] * ux + s11[i] * uy + s12[i] * uz;
-      const float su_z = s02[i] * ux + s12[i] * uy + s22[i] * uz;
-      const float qu = su_x * su_x + su_y * su_y + su_z * su_z;
-      // w C = 2^(log2(w' (pi r^2)^h) + h log2(fx fy facing / z^3)) * |u| / |Sigma' u|.
-      const float log2_g_rest = fast::log2(facing * inv_z * inv_z * inv_z);
-      const float weight = fast::exp2(lwa[i] + hh[i] * (log2_fxfy + log2_g_rest)) * std::sqrt(dist2 / qu);
-      const bool member = front & in_image;
-      const bool fast_splat = member & (radius_px < 0.5f);
-      block_u[i] = u;
-      block_v[i] = v;
-      block_iz[i] = inv_z;
-      block_du[i] = du;
-      block_dv[i] = dv;
-      block_rpx[i] = radius_px;
-      block_iz_pixel[i] = iz_pixel;
-      block_threshold[i] = threshold;
-      block_contribution[i] = weight;  // raw: masked in the scalar loop (a select here makes GCC branch)
-      block_has_area[i] = radius > 0.0f ? 1 : 0;
-      block_pixel[i] = pixel;
-      block_write_pixel[i] = fast_splat ? pixel : spare;
-      // Larger or off-centre footprints go to the general splat, unless the square misses the image.
-      const bool overlaps = (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < u_max) &
-                            (v - radius_px < v_max);
-      block_general[i] = (front & overlaps & !fast_splat) ? 1 : 0;
-      block_member[i] = member ? 1 : 0;
-    }
+    block_kernel(arrays_, base, kc, out);
     // Scalar, branch-free: the single-pixel splats, the member entries, and the list of lanes that need
     // the general (multi-pixel or partly outside) splat.
     std::size_t general_count = 0;
     for (std::size_t i = 0; i < kClusterSize; ++i) {
-      float& cell = buffer[block_write_pixel[i]];
-      const float iz = block_iz_pixel[i];
+      float& cell = buffer[out.write_pixel[i]];
+      const float iz = out.iz_pixel[i];
       cell = iz > cell ? iz : cell;
-      scratch.pixel_[entries] = block_pixel[i];
-      scratch.threshold_[entries] = block_threshold[i] > 0.0f ? block_threshold[i] : 3.0e38f;
-      scratch.contribution_[entries] = block_has_area[i] != 0 ? block_contribution[i] : 0.0f;
+      scratch.pixel_[entries] = out.pixel[i];
+      scratch.threshold_[entries] = out.threshold[i] > 0.0f ? out.threshold[i] : 3.0e38f;
+      scratch.contribution_[entries] = out.has_area[i] != 0 ? out.contribution[i] : 0.0f;
       scratch.slot_[entries] = static_cast<std::uint32_t>(base + i);
-      entries += static_cast<std::size_t>(block_member[i]);
+      entries += static_cast<std::size_t>(out.member[i]);
       general_lanes[general_count] = static_cast<std::uint32_t>(i);
-      general_count += static_cast<std::size_t>(block_general[i]);
+      general_count += static_cast<std::size_t>(out.general[i]);
     }
     for (std::size_t g = 0; g < general_count; ++g) {
       const std::uint32_t i = general_lanes[g];
-      depth.splat_projected(block_u[i], block_v[i], block_iz[i], block_du[i], block_dv[i], block_rpx[i]);
+      depth.splat_projected(out.u[i], out.v[i], out.iz[i], out.du[i], out.dv[i], out.rpx[i]);
     }
   }
   scratch.entry_count_ = entries;

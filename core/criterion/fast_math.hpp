@@ -8,13 +8,21 @@
 
 namespace vantage::fast {
 
-inline std::uint32_t bits_of(float x) {
+// Always inlined: should a translation unit ever include this with other ISA flags (-mavx2), no
+// out-of-line copy of it can be picked by the linker for baseline callers.
+#if defined(__GNUC__)
+#define VANTAGE_FAST_INLINE inline __attribute__((always_inline))
+#else
+#define VANTAGE_FAST_INLINE inline
+#endif
+
+VANTAGE_FAST_INLINE std::uint32_t bits_of(float x) {
   std::uint32_t b;
   std::memcpy(&b, &x, sizeof b);
   return b;
 }
 
-inline float float_of(std::uint32_t b) {
+VANTAGE_FAST_INLINE float float_of(std::uint32_t b) {
   float x;
   std::memcpy(&x, &b, sizeof x);
   return x;
@@ -23,7 +31,7 @@ inline float float_of(std::uint32_t b) {
 // log2(x) for finite x > 0 (normal numbers): x = m 2^e with m reduced to [sqrt(1/2), sqrt(2)), then
 // log2(m) = t p(t), t = m - 1, a degree-4 least-squares fit on Chebyshev nodes (|error| < 1.2e-4). No
 // division, so it costs a few multiply-adds per lane.
-inline float log2(float x) {
+VANTAGE_FAST_INLINE float log2(float x) {
   const std::uint32_t b = bits_of(x);
   float exponent = static_cast<float>(static_cast<std::int32_t>((b >> 23) & 0xFFu) - 127);
   float m = float_of((b & 0x007FFFFFu) | 0x3F800000u);  // [1, 2)
@@ -37,7 +45,7 @@ inline float log2(float x) {
 
 // 2^y, y clamped to [-126, 127]: the nearest integer i into the exponent bits, the fraction f in
 // [-0.5, 0.5] by 1 + f p(f), a degree-3 fit (relative error < 1.1e-4).
-inline float exp2(float y) {
+VANTAGE_FAST_INLINE float exp2(float y) {
   y = y > -126.0f ? y : -126.0f;
   y = y < 127.0f ? y : 127.0f;
   const float shifted = y + 0.5f;
