@@ -235,10 +235,15 @@ append="console=$console quiet panic=-1 rdinit=/init"
 log="$work/console.log"
 echo "run-vm: booting $release ($arch, $(basename "$kernel")) with ${#order[@]} modules, timeout ${timeout_s}s"
 start_ns=$(date +%s%N)
+# In the background with wait, so a TERM from whoever runs us stops QEMU too.
+timeout -k 5 "$timeout_s" "$qemu" "${args[@]}" -append "$append" </dev/null >"$log" 2>&1 &
+qemu_pid=$!
+trap 'kill "$qemu_pid" 2>/dev/null; exit 143' TERM INT
 set +e
-timeout -k 5 "$timeout_s" "$qemu" "${args[@]}" -append "$append" </dev/null >"$log" 2>&1
+wait "$qemu_pid"
 qemu_rc=$?
 set -e
+trap - TERM INT
 elapsed=$(( ($(date +%s%N) - start_ns) / 1000000 ))
 tr -d '\r' <"$log" >"$log.clean" && mv "$log.clean" "$log"
 [ -z "$console_copy" ] || cp "$log" "$console_copy"

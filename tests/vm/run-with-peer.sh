@@ -31,14 +31,16 @@ mkdir -p "$work"
 sock="$work/serial2.sock"
 peer_log="$work/peer.log"
 rm -f "$sock" "$peer_log"
-peer_pid= socat_pid=
+peer_pid= socat_pid= vm_pid=
 cleanup() {
-  # Only the two processes started here, by their ids.
+  # Only the processes started here, by their ids (run-vm.sh stops its own QEMU on TERM).
+  [ -z "$vm_pid" ] || kill "$vm_pid" 2>/dev/null || true
   [ -z "$socat_pid" ] || kill "$socat_pid" 2>/dev/null || true
   [ -z "$peer_pid" ] || kill "$peer_pid" 2>/dev/null || true
   wait 2>/dev/null || true
 }
 trap cleanup EXIT
+trap 'exit 143' TERM INT  # (exit runs the EXIT trap: the peer and socat go with us)
 
 # shellcheck disable=SC2086  # peer_args are separate words on purpose
 node "$peer_dir/peer.js" $peer_args </dev/null >"$peer_log" 2>&1 &
@@ -60,10 +62,14 @@ for _ in $(seq 50); do [ -S "$sock" ] && break; sleep 0.1; done
 [ -S "$sock" ] || die "socat did not create $sock"
 echo "run-with-peer: peer on udp 127.0.0.1:$port, the guest's second UART via $sock"
 
+# In the background with wait, so a TERM (ctest's timeout) reaches the trap at once.
+bash "$here/run-vm.sh" "$@" --serial2-socket "$sock" &
+vm_pid=$!
 set +e
-bash "$here/run-vm.sh" "$@" --serial2-socket "$sock"
+wait "$vm_pid"
 rc=$?
 set -e
+vm_pid=
 
 missing=0
 for regex in "${expects[@]}"; do
