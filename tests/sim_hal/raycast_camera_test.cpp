@@ -158,7 +158,7 @@ TEST_CASE("shading: texture varies the albedo and constant albedo is lighting on
   double mean = 0.0, mean2 = 0.0;
   for (std::uint8_t p : pixels) {
     mean += p;
-    mean2 += double{p} * p;
+    mean2 += static_cast<double>(p) * p;
   }
   mean /= pixels.size();
   const double stddev = std::sqrt(mean2 / pixels.size() - mean * mean);
