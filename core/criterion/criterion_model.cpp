@@ -100,9 +100,9 @@ Status CriterionModelView::refresh(const PrimitivePoolView& pool) {
   rejected_index_ = kInvalidPrimitive;
 
   // Pass 2: order the primitives into compact clusters of similar normals. Normals weigh a quarter of
-  // the model's extent per unit: on the bunny (70K) that gives 19-degree cones of 3-unit spheres, and
-  // culls more than lighter weights (1/16: 29 degrees, 1.6 units) or heavier ones (1: 12 degrees, but
-  // 7-unit spheres that reach into the frustum from everywhere).
+  // the model's extent per unit: on the bunny (70K, clusters of 64) that gave 19-degree cones of 3-unit
+  // spheres and culled more than lighter weights (1/16: 29 degrees, 1.6 units) or heavier ones (1: 12
+  // degrees, but 7-unit spheres). With clusters of 32: 14 degrees, 2.3 units.
   std::size_t n = 0;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (pool.is_alive(i)) arrays_.sort_keys[n++] = i;
