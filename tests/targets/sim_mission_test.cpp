@@ -35,15 +35,15 @@ fs::path fresh_dir(const char* name) {
 }
 
 const std::vector<std::string> kSmallMission = {"--scene", VANTAGE_SMALL_SCENE, "--measurement", "oracle",
-                                                 "--gt-samples", "4000", "--oracle-sites", "4000",
-                                                 "--sigma-target", "0.06", "--coverage-target", "0.5", "--quiet"};
+                                                 "--gt-samples", "2000", "--oracle-sites", "2000",
+                                                 "--sigma-target", "0.05", "--coverage-target", "0.25", "--quiet"};
 
 }  // namespace
 
 TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the report") {
   const fs::path out = fresh_dir("goal");
   std::vector<std::string> args = kSmallMission;
-  args.insert(args.end(), {"--budget", "300", "--out", out.string()});
+  args.insert(args.end(), {"--budget", "250", "--out", out.string()});
   REQUIRE(run(args) == 0);
   const std::string summary = read(out / "summary.json");
   CHECK(summary.find("\"reached_goal\": true") != std::string::npos);
