@@ -3,6 +3,7 @@
 // Run: vantage-bench --benchmark_filter=Render --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <memory>
 
 #include "core/geometry/viewpoint.hpp"
@@ -99,5 +100,40 @@ void BM_GroundTruthEvaluateBunny(benchmark::State& state) {
   state.counters["rms_error"] = e.rms_error;
 }
 BENCHMARK(BM_GroundTruthEvaluateBunny)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// One oracle update (EKF updates of every primitive seen + augmentation) on the bunny, 70K sites, from
+// views walking around the object at the viewing distance.
+void BM_OracleUpdateBunny(benchmark::State& state) {
+  const auto& world = bunny_world();
+  vantage::sim::OracleConfig oracle_config;
+  oracle_config.intrinsics = world.config().intrinsics;
+  vantage::sim::OracleMeasurementSource oracle(world.scene(), oracle_config);
+  g_pool.clear();
+  auto view_at = [](double azimuth) {
+    vantage::Viewpoint v;
+    (void)vantage::look_at(Eigen::Vector3d(40.0 * std::cos(azimuth), 40.0 * std::sin(azimuth), 0.0),
+                           Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v);
+    return v;
+  };
+  vantage::UpdateReport report;
+  if (!vantage::ok(oracle.initialize(vantage::GrayImageView{}, view_at(0.0), vantage::GrayImageView{}, view_at(0.1),
+                                     g_pool, &report))) {
+    state.SkipWithError("oracle initialization failed");
+    return;
+  }
+  double azimuth = 0.1;
+  std::uint64_t updated = 0;
+  for (auto _ : state) {
+    azimuth += 0.3;
+    if (!vantage::ok(oracle.update(vantage::GrayImageView{}, view_at(azimuth), g_pool, &report))) {
+      state.SkipWithError("oracle update failed");
+      return;
+    }
+    updated += report.updated;
+  }
+  state.counters["updates_per_image"] = static_cast<double>(updated) / static_cast<double>(state.iterations());
+  state.counters["primitives"] = static_cast<double>(g_pool.size());
+}
+BENCHMARK(BM_OracleUpdateBunny)->Unit(benchmark::kMillisecond)->Iterations(20)->UseRealTime();
 
 }  // namespace
