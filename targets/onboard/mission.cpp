@@ -76,17 +76,22 @@ class Rig {
     bool reopened = false;
     for (int attempt = 0; attempt < 32; ++attempt) {
       motion_.update(0.0);
+      // Exactly the camera's frame size, stride = width: drivers that keep the caller's stride (the
+      // sim camera) and drivers that set it (V4L2, libcamera) then agree.
+      const PinholeIntrinsics& k = camera_.intrinsics();
+      if (!ok(buffer.resize(k.width_px, k.height_px))) {
+        throw MissionError{kExitCamera, std::string("camera: ") + camera_.name() + ": frame larger than the front end takes"};
+      }
       MutableGrayImageView view = buffer.view();
-      view.width_px = FrameBuffer::kMaxWidth;  // capacity; grab() sets the frame's size
-      view.height_px = FrameBuffer::kMaxHeight;
-      view.stride_bytes = FrameBuffer::kMaxWidth;
       hal::FrameInfo info;
       const hal::CaptureStatus status = camera_.grab(view, info, config_.camera.timeout_ms);
       if (status == hal::CaptureStatus::kOk) {
         if (info.timestamp_ns < arrived_ns) continue;  // queued before we got here
-        (void)buffer.resize(view.width_px, view.height_px);
+        if (view.width_px != k.width_px || view.height_px != k.height_px) {
+          throw MissionError{kExitCamera, std::string("camera: ") + camera_.name() + ": frame size differs from the calibration"};
+        }
         *pose = motion_.current_pose().pose;
-        return static_cast<const FrameBuffer&>(buffer).view();
+        return view.as_const();
       }
       if (status == hal::CaptureStatus::kDeviceLost && reopen_ && !reopened) {
         reopened = true;
