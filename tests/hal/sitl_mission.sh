@@ -47,6 +47,9 @@ if [ "$mode" = link-loss ]; then
 fi
 [ "$rc" -eq 0 ] || fail "vantage-onboard exited with $rc"
 grep -q '^mission done' "$work/onboard.out" || fail "no 'mission done' line"
+# The rendered frames reached the front end with texture in them (a black or garbled frame gives no seeds).
+seeds=$(sed -n 's/.*front end: \([0-9]*\) seeds tried.*/\1/p' "$work/onboard.out")
+[ "${seeds:-0}" -gt 1000 ] || fail "the initial frames gave ${seeds:-no} textured seeds"
 captured=$(grep -c '^image ' "$work/onboard.out" || true)
 [ "$captured" -ge $((images - 2)) ] || fail "only $captured images after the initial two"
 grep -q '"msg":"SET_POSITION_TARGET_LOCAL_NED"' "$peer_out" || fail "the peer saw no setpoint"
