@@ -335,9 +335,10 @@ TEST_CASE("front end on the ray-cast bunny: accurate, and most matches found") {
 
 // The honest consistency check of the brief: averaged NEES inside the 95% chi-square band for 3 dof.
 // KNOWN TO FAIL (see core/frontend/README.md, "Consistency"): the errors' median is right but the tail
-// is heavy, chiefly from patch warps with the wrong normal in the first views. Tagged [!mayfail] so the
-// suite stays green while the figures stay visible; the band itself is not loosened.
-TEST_CASE("front end NEES lies in the 95% chi-square band (plane and bunny)", "[!mayfail]") {
+// is heavy, chiefly from patch warps with the wrong normal in the first views. Tagged [!shouldfail]: it
+// records a known defect, with the band itself not loosened, and turns red the day the estimator becomes
+// consistent (then drop the tag so the check guards it from there on).
+TEST_CASE("front end NEES lies in the 95% chi-square band (plane and bunny)", "[!shouldfail]") {
   const PlaneRun& plane = plane_run();
   CHECK(plane.all.mean_nees >= plane.all.band_low);
   CHECK(plane.all.mean_nees <= plane.all.band_high);
