@@ -1,7 +1,6 @@
 #include "targets/onboard/onboard_grid.hpp"
 
-#include <atomic>
-#include <thread>
+#include "targets/common/grid_evaluation_threads.hpp"
 
 namespace vantage::onboard {
 
@@ -23,26 +22,7 @@ Status OnboardGrid::evaluate(const PrimitivePoolView& pool) {
   if (!ok(s)) return s;
   s = grid_.update_free_mask(model_, kDefaultSafetyMargin);
   if (!ok(s)) return s;
-  const std::int32_t rows = grid_.cells_per_side();
-  std::atomic<std::int32_t> next_row{0};
-  std::atomic<int> first_error{static_cast<int>(Status::kOk)};
-  auto worker = [&](int t) {
-    for (std::int32_t row = next_row++; row < rows; row = next_row++) {
-      const Status r = grid_.evaluate(model_, intrinsics_, row * rows, (row + 1) * rows, scratch_[t]);
-      if (!ok(r)) {
-        int expected = static_cast<int>(Status::kOk);
-        first_error.compare_exchange_strong(expected, static_cast<int>(r));
-      }
-    }
-  };
-  std::thread helper(worker, 1);
-  worker(0);
-  helper.join();
-  if (first_error.load() != static_cast<int>(Status::kOk)) return static_cast<Status>(first_error.load());
-  s = grid_.finalize();
-  // No free cell seeing a primitive, or no free cell at all: the executive decides what that means.
-  if (s == Status::kNotFound || s == Status::kNoFreeCell) return Status::kOk;
-  return s;
+  return targets::evaluate_grid_on_two_threads(grid_, model_, intrinsics_, scratch_[0], scratch_[1]);
 }
 
 Status OnboardGrid::viewpoint(const GridCell& cell, Viewpoint* out) const {

@@ -1,12 +1,11 @@
 #include "targets/sim/grid_driver.hpp"
 
 #include <array>
-#include <atomic>
 #include <string>
-#include <thread>
 #include <utility>
 
 #include "core/planning/path_query.hpp"
+#include "targets/common/grid_evaluation_threads.hpp"
 #include "sim_hal/sim_error.hpp"
 
 namespace vantage::simtarget {
@@ -64,25 +63,7 @@ Status GridDriver::evaluate(const PrimitivePoolView& pool) {
     s = grid.update_free_mask(model_, safety_margin_);
     if (!ok(s)) return s;
   }
-  const std::int32_t rows = grid.cells_per_side();
-  std::atomic<std::int32_t> next_row{0};
-  std::atomic<int> first_error{static_cast<int>(Status::kOk)};
-  auto worker = [&](int t) {
-    for (std::int32_t row = next_row++; row < rows; row = next_row++) {
-      const Status r = grid.evaluate(model_, intrinsics_, row * rows, (row + 1) * rows, scratch_[t]);
-      if (!ok(r)) {
-        int expected = static_cast<int>(Status::kOk);
-        first_error.compare_exchange_strong(expected, static_cast<int>(r));
-      }
-    }
-  };
-  std::thread helper(worker, 1);
-  worker(0);
-  helper.join();
-  if (first_error.load() != static_cast<int>(Status::kOk)) return static_cast<Status>(first_error.load());
-  s = grid.finalize();
-  if (s == Status::kNotFound || s == Status::kNoFreeCell) return Status::kOk;
-  return s;
+  return targets::evaluate_grid_on_two_threads(grid, model_, intrinsics_, scratch_[0], scratch_[1]);
 }
 
 GridMapView GridDriver::map() const {
