@@ -37,7 +37,7 @@
 
 namespace vantage {
 
-inline constexpr std::size_t kClusterSize = 32;
+inline constexpr std::size_t kClusterSize = 16;
 
 constexpr std::size_t round_up_to_clusters(std::size_t n) { return (n + kClusterSize - 1) / kClusterSize * kClusterSize; }
 
