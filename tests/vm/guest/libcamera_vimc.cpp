@@ -28,58 +28,19 @@
 #include <vector>
 
 #include "hal/libcamera/libcamera_camera.hpp"
+#include "tests/vm/guest/guest_checks.hpp"
 
 extern char** environ;
 
 using namespace vantage;
 using namespace vantage::hal;
+using namespace vantage::vm_guest;
 
 namespace {
 
 // vimc's private sensor control (drivers/media/test-drivers/vimc/vimc-common.h): VIMC_CID_OSD_TEXT_MODE,
 // shown as "Show Information"; 2 = None, so no timestamp or counter is drawn.
 constexpr std::uint32_t kVimcCidOsdTextMode = 0x00f0f000 + 2;
-
-int g_failures = 0;
-void pass(const std::string& name, const std::string& detail) {
-  std::printf("PASS %s: %s\n", name.c_str(), detail.c_str());
-}
-void fail(const std::string& name, const std::string& detail) {
-  std::printf("FAIL %s: %s\n", name.c_str(), detail.c_str());
-  ++g_failures;
-}
-
-std::uint64_t hash_gray(const MutableGrayImageView& image) {
-  std::uint64_t h = 14695981039346656037ull;  // FNV-1a 64, rows only
-  for (std::int32_t y = 0; y < image.height_px; ++y) {
-    const std::uint8_t* row = image.pixels + static_cast<std::ptrdiff_t>(y) * image.stride_bytes;
-    for (std::int32_t x = 0; x < image.width_px; ++x) {
-      h ^= row[x];
-      h *= 1099511628211ull;
-    }
-  }
-  return h;
-}
-
-int distinct_values(const MutableGrayImageView& image) {
-  bool seen[256] = {};
-  int count = 0;
-  for (std::int32_t y = 0; y < image.height_px; ++y) {
-    for (std::int32_t x = 0; x < image.width_px; ++x) {
-      if (!seen[image.at(x, y)]) {
-        seen[image.at(x, y)] = true;
-        ++count;
-      }
-    }
-  }
-  return count;
-}
-
-std::string hex(std::uint64_t value) {
-  char text[17];
-  std::snprintf(text, sizeof text, "%016" PRIx64, value);
-  return text;
-}
 
 std::string read_line(const std::string& path) {
   std::ifstream in(path);

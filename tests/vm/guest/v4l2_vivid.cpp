@@ -28,9 +28,11 @@
 #include <vector>
 
 #include "hal/v4l2/v4l2_camera.hpp"
+#include "tests/vm/guest/guest_checks.hpp"
 
 using namespace vantage;
 using namespace vantage::hal;
+using namespace vantage::vm_guest;
 
 namespace {
 
@@ -39,48 +41,6 @@ namespace {
 constexpr std::uint32_t kVividCidOsdTextMode = 0x00f0f000 + 1;
 constexpr const char* kPlatformDevice = "vivid.0";
 constexpr const char* kDriverDir = "/sys/bus/platform/drivers/vivid";
-
-int g_failures = 0;
-
-void pass(const char* name, const std::string& detail) { std::printf("PASS %s: %s\n", name, detail.c_str()); }
-void fail(const char* name, const std::string& detail) {
-  std::printf("FAIL %s: %s\n", name, detail.c_str());
-  ++g_failures;
-}
-
-// FNV-1a 64 over the image's rows (not the stride padding).
-std::uint64_t hash_gray(const MutableGrayImageView& image) {
-  std::uint64_t h = 14695981039346656037ull;
-  for (std::int32_t y = 0; y < image.height_px; ++y) {
-    const std::uint8_t* row = image.pixels + static_cast<std::ptrdiff_t>(y) * image.stride_bytes;
-    for (std::int32_t x = 0; x < image.width_px; ++x) {
-      h ^= row[x];
-      h *= 1099511628211ull;
-    }
-  }
-  return h;
-}
-
-int distinct_values(const MutableGrayImageView& image) {
-  bool seen[256] = {};
-  int count = 0;
-  for (std::int32_t y = 0; y < image.height_px; ++y) {
-    for (std::int32_t x = 0; x < image.width_px; ++x) {
-      const std::uint8_t v = image.at(x, y);
-      if (!seen[v]) {
-        seen[v] = true;
-        ++count;
-      }
-    }
-  }
-  return count;
-}
-
-std::string hex(std::uint64_t value) {
-  char text[17];
-  std::snprintf(text, sizeof text, "%016" PRIx64, value);
-  return text;
-}
 
 std::int64_t monotonic_now_ns() {
   timespec ts{};
