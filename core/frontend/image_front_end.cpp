@@ -1,6 +1,7 @@
 #include "core/frontend/image_front_end.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include "core/frontend/iterated_update.hpp"
 #include "core/frontend/patch_warp.hpp"
@@ -345,20 +346,9 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       const std::uint32_t count = p.observation_count;
       if (count != n && count != 2 * n && count != 4 * n && count != 8 * n) continue;
       const double spacing = config_.seed_stride_px * cell_depth_[cell] / focal;
+      // Only neighbours known to a fraction of their spacing say anything about the plane.
       std::array<Eigen::Vector3d, 8> neighbours;
-      std::size_t used = 0;
-      for (std::int32_t dy = -1; dy <= 1; ++dy) {
-        for (std::int32_t dx = -1; dx <= 1; ++dx) {
-          const std::int32_t nx = cx + dx;
-          const std::int32_t ny = cy + dy;
-          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
-          const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
-          if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
-          // Only neighbours known to a fraction of their spacing say anything about the plane.
-          if (!(sigma_bound(pool[j].Sigma_world) < 0.25 * spacing)) continue;
-          neighbours[used++] = pool[j].X_world;
-        }
-      }
+      const std::size_t used = neighbour_positions(cx, cy, pool, 0.25 * spacing, &neighbours);
       PlaneFitConfig fit;
       fit.max_neighbour_distance = 3.0 * spacing;
       Eigen::Vector3f normal;
@@ -368,6 +358,23 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       }
     }
   }
+}
+
+std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool,
+                                               double max_sigma, std::array<Eigen::Vector3d, 8>* out) const {
+  std::size_t count = 0;
+  for (std::int32_t dy = -1; dy <= 1; ++dy) {
+    for (std::int32_t dx = -1; dx <= 1; ++dx) {
+      const std::int32_t nx = cx + dx;
+      const std::int32_t ny = cy + dy;
+      if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
+      const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
+      if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
+      if (std::isfinite(max_sigma) && !(sigma_bound(pool[j].Sigma_world) < max_sigma)) continue;
+      (*out)[count++] = pool[j].X_world;
+    }
+  }
+  return count;
 }
 
 void ImageFrontEnd::merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report) {
@@ -505,17 +512,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       if ((cell_state_[cell] & kCellSpawned) == 0) continue;
       Primitive& p = pool[cell_primitive_[cell]];
       std::array<Eigen::Vector3d, 8> neighbours;
-      std::size_t count = 0;
-      for (std::int32_t dy = -1; dy <= 1; ++dy) {
-        for (std::int32_t dx = -1; dx <= 1; ++dx) {
-          const std::int32_t nx = cx + dx;
-          const std::int32_t ny = cy + dy;
-          if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;
-          const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
-          if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
-          neighbours[count++] = pool[j].X_world;
-        }
-      }
+      const std::size_t count =
+          neighbour_positions(cx, cy, pool, std::numeric_limits<double>::infinity(), &neighbours);
       PlaneFitConfig fit;
       fit.max_neighbour_distance = 3.0 * stride * cell_depth_[cell] / focal;
       Eigen::Vector3f normal;

@@ -147,6 +147,10 @@ class ImageFrontEnd final : public MeasurementSource {
   void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
+  // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
+  // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
+  std::size_t neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool, double max_sigma,
+                                  std::array<Eigen::Vector3d, 8>* out) const;
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
              const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
