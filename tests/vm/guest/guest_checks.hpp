@@ -5,6 +5,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
 
 #include "core/image/gray_image.hpp"
@@ -49,6 +52,30 @@ inline int distinct_values(const MutableGrayImageView& image) {
     }
   }
   return count;
+}
+
+// The golden hashes: one "device format size hash" line each, '#' comments. Empty, with the reason in
+// *error (file and line), when the file cannot be read or a line is malformed.
+inline std::map<std::string, std::string> read_goldens(const char* path, std::string* error) {
+  std::map<std::string, std::string> goldens;
+  std::ifstream in(path);
+  if (!in) {
+    *error = std::string(path) + ": cannot be read";
+    return {};
+  }
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    std::string device, format, size, hash, extra;
+    if (!(fields >> device >> format >> size >> hash) || (fields >> extra)) {
+      *error = std::string(path) + ":" + std::to_string(number) + ": expected 'device format size hash'";
+      return {};
+    }
+    goldens[device + " " + format + " " + size] = hash;
+  }
+  if (goldens.empty()) *error = std::string(path) + ": no golden hashes";
+  return goldens;
 }
 
 inline std::string hex(std::uint64_t value) {

@@ -23,7 +23,6 @@
 #include <cstring>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -79,19 +78,6 @@ bool set_subdev_control(const char* entity, std::uint32_t id, std::int32_t value
   }
   *detail = std::string("no subdevice named '") + entity + "'";
   return false;
-}
-
-std::map<std::string, std::string> read_goldens(const char* path) {
-  std::map<std::string, std::string> goldens;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    std::string device, format, size, hash;
-    if (fields >> device >> format >> size >> hash) goldens[device + " " + format + " " + size] = hash;
-  }
-  return goldens;
 }
 
 PinholeIntrinsics intrinsics_for(std::int32_t width_px, std::int32_t height_px) {
@@ -210,9 +196,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   const bool print_goldens = argc > 2 && std::strcmp(argv[2], "--print-goldens") == 0;
-  const std::map<std::string, std::string> goldens = read_goldens(argv[1]);
+  std::string goldens_error;
+  const std::map<std::string, std::string> goldens = read_goldens(argv[1], &goldens_error);
   if (!print_goldens && goldens.empty()) {
-    fail("libcamera_goldens", std::string("no golden hashes in ") + argv[1]);
+    fail("libcamera_goldens", goldens_error);
     return 1;
   }
 

@@ -20,9 +20,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -95,19 +93,6 @@ bool wait_for_node(const char* device, int timeout_ms) {
     ::usleep(20000);
   }
   return ::access(device, F_OK) == 0;
-}
-
-std::map<std::string, std::string> read_goldens(const char* path) {
-  std::map<std::string, std::string> goldens;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    std::string device, format, size, hash;
-    if (fields >> device >> format >> size >> hash) goldens[device + " " + format + " " + size] = hash;
-  }
-  return goldens;
 }
 
 // An independent reference for the golden hashes: a YUYV frame read with plain read() I/O (no driver of
@@ -345,9 +330,10 @@ int main(int argc, char** argv) {
   }
   const char* device = argv[1];
   const bool print_goldens = argc > 3 && std::strcmp(argv[3], "--print-goldens") == 0;
-  const std::map<std::string, std::string> goldens = read_goldens(argv[2]);
+  std::string goldens_error;
+  const std::map<std::string, std::string> goldens = read_goldens(argv[2], &goldens_error);
   if (!print_goldens && goldens.empty()) {
-    fail("v4l2_goldens", std::string("no golden hashes in ") + argv[2]);
+    fail("v4l2_goldens", goldens_error);
     return 1;
   }
 
