@@ -60,18 +60,30 @@ std::vector<std::uint8_t> frame_of(FrameWriter& writer, const Heartbeat& hb) {
   return std::vector<std::uint8_t>(buffer, buffer + n);
 }
 
+// A MavlinkMotion on a UDP link to a FakeVehicle.
+struct VehicleOnUdp {
+  FakeVehicle vehicle;
+  UdpLink link;
+  hal::SteadyClock clock;
+  MavlinkMotionConfig config;
+  MavlinkMotion motion{link, clock, config};
+
+  // Opens the link, starts the motion driver and waits until the vehicle has heard the companion.
+  bool connect() {
+    if (!link.open("127.0.0.1", vehicle.port()).empty()) return false;
+    motion.start();
+    for (int i = 0; i < 100 && !vehicle.listen(); ++i) ::usleep(1000);
+    return vehicle.have_companion;
+  }
+};
+
 }  // namespace
 
 TEST_CASE("a UDP flood of garbage costs bounded work per update and good frames get through", "[mavlink][flood]") {
-  FakeVehicle vehicle;
-  UdpLink link;
-  REQUIRE(link.open("127.0.0.1", vehicle.port()) == "");
-  hal::SteadyClock clock;
-  MavlinkMotionConfig config;
-  MavlinkMotion motion(link, clock, config);
-  motion.start();
-  for (int i = 0; i < 100 && !vehicle.listen(); ++i) ::usleep(1000);
-  REQUIRE(vehicle.have_companion);
+  VehicleOnUdp setup;
+  REQUIRE(setup.connect());
+  FakeVehicle& vehicle = setup.vehicle;
+  MavlinkMotion& motion = setup.motion;
 
   FrameWriter writer(1, 1);
   Heartbeat hb;
@@ -114,16 +126,11 @@ TEST_CASE("a UDP flood of garbage costs bounded work per update and good frames 
 }
 
 TEST_CASE("datagrams from another address are ignored", "[mavlink]") {
-  FakeVehicle vehicle;
+  VehicleOnUdp setup;
+  REQUIRE(setup.connect());
+  FakeVehicle& vehicle = setup.vehicle;
+  MavlinkMotion& motion = setup.motion;
   FakeVehicle intruder;
-  UdpLink link;
-  REQUIRE(link.open("127.0.0.1", vehicle.port()) == "");
-  hal::SteadyClock clock;
-  MavlinkMotionConfig config;
-  MavlinkMotion motion(link, clock, config);
-  motion.start();
-  for (int i = 0; i < 100 && !vehicle.listen(); ++i) ::usleep(1000);
-  REQUIRE(vehicle.have_companion);
   intruder.companion = vehicle.companion;
   intruder.have_companion = true;
   FrameWriter writer(1, 1);
