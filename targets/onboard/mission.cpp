@@ -7,6 +7,7 @@
 
 #include "core/frontend/image_front_end.hpp"
 #include "core/planning/sensing_executive.hpp"
+#include "targets/common/search_depth_range.hpp"
 #include "targets/onboard/onboard_grid.hpp"
 
 namespace vantage::onboard {
@@ -141,9 +142,9 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   const MissionSettings& m = config.mission;
   const PinholeIntrinsics& intrinsics = camera.intrinsics();
   FrontEndConfig fc;
-  fc.depth_min = m.depth_min_m;
-  fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m
-                                      : std::sqrt(2.0) * 0.5 * m.grid.cells_per_side * m.grid.cell_size_m + 0.5 * m.viewing_distance_m;
+  const targets::SearchDepthRange derived = targets::default_search_depth_range(m.grid, m.viewing_distance_m);
+  fc.depth_min = m.depth_min_m > 0.0 ? m.depth_min_m : derived.min_m;
+  fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m : derived.max_m;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

@@ -195,8 +195,11 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.number("rho_sigma", &s.rho_sigma, 1e-9, 1e3);
     mis.number("eta_utility", &s.eta_utility, 0, 1e30);
     mis.number("split_epsilon_cells", &s.split_epsilon_cells, 0.01, 100);
-    mis.number("depth_min_m", &s.depth_min_m, 1e-3, 1e5);
+    mis.number("depth_min_m", &s.depth_min_m, 0, 1e5);
     mis.number("depth_max_m", &s.depth_max_m, 0, 1e6);
+    if (s.depth_min_m > 0.0 && s.depth_max_m > 0.0 && s.depth_max_m <= s.depth_min_m) {
+      throw Failure{"mission.depth_max_m", "must be larger than depth_min_m"};
+    }
     if (s.viewing_distance_m >= 0.5 * s.grid.cells_per_side * s.grid.cell_size_m) {
       throw Failure{"mission.viewing_distance_m", "the initial views would lie outside the grid"};
     }

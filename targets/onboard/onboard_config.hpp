@@ -41,8 +41,8 @@ struct MissionSettings {
   double rho_sigma = 0.008;
   double eta_utility = 0.0;
   double split_epsilon_cells = 0.75;
-  double depth_min_m = 1.0;          // the front end's epipolar search range
-  double depth_max_m = 0.0;          // 0: from the grid's extent
+  double depth_min_m = 0.0;          // the front end's epipolar search range (camera z);
+  double depth_max_m = 0.0;          // 0: targets::default_search_depth_range
 };
 
 struct OnboardConfig {

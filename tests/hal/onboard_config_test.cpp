@@ -84,6 +84,9 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  cells_per_side: 40\n").find("onboard.yaml: mission.cells_per_side: this build holds a 60x60") == 0);
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  viewing_distance_m: 70\n") ==
         "onboard.yaml: mission.viewing_distance_m: the initial views would lie outside the grid");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  depth_min_m: 30\n  depth_max_m: 20\n") ==
+        "onboard.yaml: mission.depth_max_m: must be larger than depth_min_m");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  depth_min_m: -1\n").find("onboard.yaml: mission.depth_min_m: ") == 0);
   CHECK(error_for("camera: [unclosed\n").find("onboard.yaml: line ") == 0);
   CHECK(error_for("robot: {}\n") == "onboard.yaml: robot: unknown section");
 }

@@ -13,7 +13,7 @@ mkdir -p "$work"
 peer_out="$work/peer.out"
 : >"$peer_out"  # exists before the peer opens it (the loop below reads it)
 # The peer starts off the first view (NED x=-35 north, y=3 east, z=0) and flies at 20 units/s.
-"$node" "$peer_dir/peer.js" --duration-s 58 --speed-mps 20 --start-ned -35,3,0 "${silent[@]}" </dev/null >"$peer_out" 2>&1 &
+"$node" "$peer_dir/peer.js" --duration-s 100 --speed-mps 20 --start-ned -35,3,0 "${silent[@]}" </dev/null >"$peer_out" 2>&1 &
 peer_pid=$!
 trap 'kill "$peer_pid" 2>/dev/null || true; wait "$peer_pid" 2>/dev/null || true' EXIT
 port=""
@@ -32,13 +32,9 @@ mavlink:
   link_loss_timeout_s: 1.5
 mission:
   max_images: $images
-  # The epipolar search range the simulator's mission uses too (vantage-sim: 0.125 x viewing distance to
-  # the grid's far corner); the front end's default 1..grid-extent range finds no unique match here.
-  depth_min_m: 5
-  depth_max_m: 95
 EOF
 set +e
-timeout 55 "$onboard" "$work/onboard.yaml" >"$work/onboard.out" 2>&1
+timeout 95 "$onboard" "$work/onboard.yaml" >"$work/onboard.out" 2>&1
 rc=$?
 set -e
 cat "$work/onboard.out"
