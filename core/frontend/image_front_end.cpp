@@ -42,7 +42,8 @@ Status FrontEndConfig::validate() const {
   const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, uniqueness_ratio, depth_min, depth_max,
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
-                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px};
+                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
+                           facing_normal_tilt_variance};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -66,6 +67,7 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_px)) return Status::kInvalidArgument;
+  if (!(facing_normal_tilt_variance >= 0.0)) return Status::kInvalidArgument;
   if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
       !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
     return Status::kInvalidArgument;
@@ -187,6 +189,8 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   const std::uint32_t first_index = next_view_index_;
   view_poses_[0] = first_view;
   next_view_index_ = 1;
+  // Primitives someone else put in the pool have a normal nobody fitted: the facing-camera prior.
+  normal_tilt_variance_.fill(static_cast<float>(config_.facing_normal_tilt_variance));
   reset_cells();
   spawn(first, first_view, first_index, second, second_view, pool, out);
   remember(second, second_view);
@@ -284,7 +288,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     NccTemplate tmpl;
     Viewpoint creating;
     Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
-    if (ok(view_pose(p.creating_view, &creating))) {
+    const bool have_creating = ok(view_pose(p.creating_view, &creating));
+    if (have_creating) {
       if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         p.flags |= primitive_flags::kLostTrack;
@@ -295,6 +300,13 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       warp_patch_template(p.patch, A, &tmpl);
     } else {
       make_template(p.patch, &tmpl);
+    }
+    // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
+    Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
+    std::array<Eigen::Matrix2d, 2> dA;
+    if (config_.model_normal_uncertainty && have_creating &&
+        ok(plane_affine_tilt_derivatives(p.X_world, p.normal_world, creating, view, intrinsics_, A, &dA))) {
+      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
     }
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;
@@ -321,7 +333,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     ++report.matched;
     EkfConfig ekf = config_.ekf;
-    ekf.R_px2 = measurement_R(fit_covariance);
+    ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     const Status updated = iterated_ekf_update(p, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
     if (ok(updated)) {
       ++report.updated;
@@ -347,21 +359,42 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       if (count != n && count != 2 * n && count != 4 * n && count != 8 * n) continue;
       const double spacing = config_.seed_stride_px * cell_depth_[cell] / focal;
       // Only neighbours known to a fraction of their spacing say anything about the plane.
-      std::array<Eigen::Vector3d, 8> neighbours;
-      const std::size_t used = neighbour_positions(cx, cy, pool, 0.25 * spacing, &neighbours);
-      PlaneFitConfig fit;
-      fit.max_neighbour_distance = 3.0 * spacing;
-      Eigen::Vector3f normal;
-      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), used), view.position_world, fit,
-                           &normal)) {
-        p.normal_world = normal;
-      }
+      fit_normal(cell_primitive_[cell], cx, cy, 0.25 * spacing, 3.0 * spacing, view.position_world, pool);
     }
   }
 }
 
+void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma,
+                               double max_distance, const Eigen::Vector3d& camera_world, PrimitivePoolView& pool) {
+  Primitive& p = pool[i];
+  std::array<Eigen::Vector3d, 8> neighbours;
+  std::array<Eigen::Matrix3d, 8> sigmas;
+  const std::size_t used = neighbour_positions(cx, cy, pool, max_sigma, &neighbours, &sigmas);
+  PlaneFitConfig fit;
+  fit.max_neighbour_distance = max_distance;
+  Eigen::Vector3f normal;
+  double tilt_variance = 0.0;
+  if (!fit_plane_normal(p.X_world, p.Sigma_world, Span<const Eigen::Vector3d>(neighbours.data(), used),
+                        Span<const Eigen::Matrix3d>(sigmas.data(), used), camera_world, fit, &normal, &tilt_variance)) {
+    return;
+  }
+  // A fit from noisy neighbours can know less than the normal already has: keep the better one.
+  if (config_.model_normal_uncertainty && !(tilt_variance < normal_tilt_variance(i))) return;
+  p.normal_world = normal;
+  set_normal_tilt_variance(i, tilt_variance);
+}
+
+double ImageFrontEnd::normal_tilt_variance(PrimitiveIndex i) const {
+  return i < kFrontEndMaxPrimitives ? normal_tilt_variance_[i] : config_.facing_normal_tilt_variance;
+}
+
+void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance) {
+  if (i < kFrontEndMaxPrimitives) normal_tilt_variance_[i] = static_cast<float>(variance);
+}
+
 std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool,
-                                               double max_sigma, std::array<Eigen::Vector3d, 8>* out) const {
+                                               double max_sigma, std::array<Eigen::Vector3d, 8>* out,
+                                               std::array<Eigen::Matrix3d, 8>* sigmas) const {
   std::size_t count = 0;
   for (std::int32_t dy = -1; dy <= 1; ++dy) {
     for (std::int32_t dx = -1; dx <= 1; ++dx) {
@@ -371,6 +404,7 @@ std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy,
       const PrimitiveIndex j = cell_primitive_[static_cast<std::size_t>(ny) * cells_x_ + nx];
       if (j == kInvalidPrimitive || !pool.is_alive(j)) continue;
       if (std::isfinite(max_sigma) && !(sigma_bound(pool[j].Sigma_world) < max_sigma)) continue;
+      if (sigmas != nullptr) (*sigmas)[count] = pool[j].Sigma_world;
       (*out)[count++] = pool[j].X_world;
     }
   }
@@ -500,6 +534,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       }
       if (!ok(inserted)) continue;
       ++report.spawned;
+      set_normal_tilt_variance(index, config_.facing_normal_tilt_variance);
       cell_primitive_[cell] = index;
       cell_depth_[cell] = static_cast<float>(depth);
       cell_state_[cell] |= kCellSpawned;
@@ -510,20 +545,13 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
     for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
       const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
       if ((cell_state_[cell] & kCellSpawned) == 0) continue;
-      Primitive& p = pool[cell_primitive_[cell]];
-      std::array<Eigen::Vector3d, 8> neighbours;
-      const std::size_t count =
-          neighbour_positions(cx, cy, pool, std::numeric_limits<double>::infinity(), &neighbours);
-      PlaneFitConfig fit;
-      fit.max_neighbour_distance = 3.0 * stride * cell_depth_[cell] / focal;
-      Eigen::Vector3f normal;
-      if (fit_plane_normal(p.X_world, Span<const Eigen::Vector3d>(neighbours.data(), count),
-                           reference_view.position_world, fit, &normal)) {
-        p.normal_world = normal;
-        const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
-        p.radius = static_cast<float>(
-            footprint_radius(stride, cell_depth_[cell], focal, to_camera.dot(normal.cast<double>())));
-      }
+      const PrimitiveIndex i = cell_primitive_[cell];
+      fit_normal(i, cx, cy, std::numeric_limits<double>::infinity(), 3.0 * stride * cell_depth_[cell] / focal,
+                 reference_view.position_world, pool);
+      Primitive& p = pool[i];
+      const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
+      p.radius = static_cast<float>(
+          footprint_radius(stride, cell_depth_[cell], focal, to_camera.dot(p.normal_world.cast<double>())));
     }
   }
 }

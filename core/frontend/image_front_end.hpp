@@ -37,6 +37,8 @@ inline constexpr std::size_t kFrontEndMaxCells =
 inline constexpr std::size_t kFrontEndMaxViews = 1024;
 inline constexpr std::int32_t kFrontEndMaxHalfWindow = 24;
 inline constexpr std::size_t kFrontEndMaxEpipolarSamples = 2048;
+// Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
+inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 
 struct FrontEndConfig {
   // Seeds: one candidate pixel per seed_stride_px x seed_stride_px cell, if its patch has contrast.
@@ -67,6 +69,13 @@ struct FrontEndConfig {
   double match_sigma_floor_px = 0.05;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
+  // The normal's uncertainty in R (see README, "Normal uncertainty"): a primitive's normal has a tilt
+  // variance (rad^2 per axis); through the warp it displaces the match, and that covariance is added to
+  // R. A normal that only faces the creating camera has facing_normal_tilt_variance: the in-plane
+  // components of a unit normal drawn from the visible hemisphere with density proportional to cos
+  // (surfaces show in proportion to their projected area) have variance 1/4 each.
+  bool model_normal_uncertainty = true;
+  double facing_normal_tilt_variance = 0.25;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -149,8 +158,16 @@ class ImageFrontEnd final : public MeasurementSource {
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
+  // Their covariances go to *sigmas when it is not null.
   std::size_t neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool, double max_sigma,
-                                  std::array<Eigen::Vector3d, 8>* out) const;
+                                  std::array<Eigen::Vector3d, 8>* out,
+                                  std::array<Eigen::Matrix3d, 8>* sigmas = nullptr) const;
+  // Refits primitive i's normal from the neighbours of cell (cx, cy); keeps the fit when its tilt variance
+  // is below the current one. The camera orients the normal.
+  void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,
+                  const Eigen::Vector3d& camera_world, PrimitivePoolView& pool);
+  double normal_tilt_variance(PrimitiveIndex i) const;
+  void set_normal_tilt_variance(PrimitiveIndex i, double variance);
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
              const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
@@ -177,6 +194,9 @@ class ImageFrontEnd final : public MeasurementSource {
   std::array<float, kFrontEndMaxCells> cell_depth_{};
   std::array<std::uint8_t, kFrontEndMaxCells> cell_covered_{};
   std::array<std::uint8_t, kFrontEndMaxCells> cell_state_{};  // kCellUpdated | kCellSpawned
+
+  // Tilt variance (rad^2 per axis) of each primitive's normal, by pool index.
+  std::array<float, kFrontEndMaxPrimitives> normal_tilt_variance_{};
 
   DepthBuffer<> depth_buffer_;
   std::array<float, window_scratch_size(kFrontEndMaxHalfWindow)> window_scratch_{};

@@ -21,6 +21,15 @@ struct PlaneFitConfig {
 bool fit_plane_normal(const Eigen::Vector3d& centre, Span<const Eigen::Vector3d> neighbours,
                       const Eigen::Vector3d& camera_world, const PlaneFitConfig& config, Eigen::Vector3f* normal);
 
+// The same fit with the normal's uncertainty: *tilt_variance (rad^2, each of the two tilt axes) bounds the
+// covariance of the normal's tilt, s^2 / (sum over the points of their in-plane spread along the narrower
+// axis), where s^2 is the larger of the points' mean out-of-plane variance n^T Sigma n and the fit's
+// residual variance. neighbour_Sigmas has one covariance per neighbour (false otherwise).
+bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
+                      Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
+                      const Eigen::Vector3d& camera_world, const PlaneFitConfig& config, Eigen::Vector3f* normal,
+                      double* tilt_variance);
+
 // Radius of the disc that covers one stride x stride pixel cell at camera depth depth, on a plane whose
 // normal makes angle acos(cos_incidence) with the viewing ray (incidence clamped at 75 degrees).
 double footprint_radius(double stride_px, double depth, double focal_px, double cos_incidence);

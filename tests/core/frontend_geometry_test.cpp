@@ -1,8 +1,11 @@
 #include <cmath>
+#include <random>
+#include <vector>
 
 #include <Eigen/Dense>
 #include <catch2/catch.hpp>
 
+#include "core/frontend/patch_search.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
@@ -122,4 +125,115 @@ TEST_CASE("a plane fit gives the plane's normal toward the camera, and refuses a
                                PlaneFitConfig{}, &normal));
   CHECK(footprint_radius(4.0, 40.0, 579.0, 1.0) == Approx(0.5 * std::sqrt(2.0) * 4.0 * 40.0 / 579.0));
   CHECK(footprint_radius(4.0, 40.0, 579.0, 0.0) == Approx(footprint_radius(4.0, 40.0, 579.0, 1.0) / std::cos(75.0 * M_PI / 180.0)));
+}
+
+TEST_CASE("a plane fit's tilt variance follows the neighbours' covariances and its residual") {
+  // A 3 x 3 grid on the plane x = 0, 0.3 apart, each point with depth noise sigma along x.
+  const double sigma = 0.01;
+  const Eigen::Matrix3d Sigma = sigma * sigma * Eigen::Matrix3d::Identity();
+  std::array<Eigen::Vector3d, 8> grid;
+  int count = 0;
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      if (dx != 0 || dy != 0) grid[count++] = Eigen::Vector3d(0.0, 0.3 * dx, 0.3 * dy);
+    }
+  }
+  const std::array<Eigen::Matrix3d, 8> sigmas = {Sigma, Sigma, Sigma, Sigma, Sigma, Sigma, Sigma, Sigma};
+  const Eigen::Vector3d camera(-40.0, 0.0, 0.0);
+  Eigen::Vector3f normal;
+  double tilt_variance = 0.0;
+  REQUIRE(fit_plane_normal(Eigen::Vector3d::Zero(), Sigma, Span<const Eigen::Vector3d>(grid.data(), 8),
+                           Span<const Eigen::Matrix3d>(sigmas.data(), 8), camera, PlaneFitConfig{}, &normal,
+                           &tilt_variance));
+  // Noise-free points: sigma^2 / sum of squared offsets along either axis (6 x 0.3^2).
+  CHECK(tilt_variance == Approx(sigma * sigma / (6.0 * 0.09)).epsilon(1e-6));
+  // Monte Carlo: the fitted normal's tilt scatters as predicted (the residual term is then part of it).
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, sigma);
+  double sum_tilt2 = 0.0;
+  double sum_predicted = 0.0;
+  const int trials = 400;
+  for (int trial = 0; trial < trials; ++trial) {
+    std::array<Eigen::Vector3d, 8> noisy = grid;
+    for (Eigen::Vector3d& X : noisy) X.x() += noise(rng);
+    const Eigen::Vector3d centre(noise(rng), 0.0, 0.0);
+    REQUIRE(fit_plane_normal(centre, Sigma, Span<const Eigen::Vector3d>(noisy.data(), 8),
+                             Span<const Eigen::Matrix3d>(sigmas.data(), 8), camera, PlaneFitConfig{}, &normal,
+                             &tilt_variance));
+    sum_tilt2 += 0.5 * (normal.y() * normal.y() + normal.z() * normal.z());  // per axis
+    sum_predicted += tilt_variance;
+  }
+  CHECK(sum_tilt2 / trials == Approx(sigma * sigma / 0.54).epsilon(0.15));
+  // The bound never says less than the points' covariance does.
+  CHECK(sum_predicted / trials >= sigma * sigma / 0.54 * 0.999);
+  // Mismatched covariance count: refused.
+  CHECK_FALSE(fit_plane_normal(Eigen::Vector3d::Zero(), Sigma, Span<const Eigen::Vector3d>(grid.data(), 8),
+                               Span<const Eigen::Matrix3d>(sigmas.data(), 7), camera, PlaneFitConfig{}, &normal,
+                               &tilt_variance));
+}
+
+TEST_CASE("a tilted normal moves the match as the warp covariance predicts") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  vantage::test::TexturedPlane plane;  // x = 0
+  plane.feature_size = 1.0;
+  const Viewpoint reference = vantage::test::looking_at_origin({30.0, 0.0, 0.0});
+  const Viewpoint target = vantage::test::looking_at_origin({30.0 * std::cos(0.6), 30.0 * std::sin(0.6), 3.0});
+  std::vector<std::uint8_t> reference_pixels;
+  std::vector<std::uint8_t> target_pixels;
+  vantage::test::render_plane(plane, reference, k, &reference_pixels);
+  vantage::test::render_plane(plane, target, k, &target_pixels);
+  const GrayImageView reference_image = vantage::test::view_of(reference_pixels, k);
+  const GrayImageView target_image = vantage::test::view_of(target_pixels, k);
+  const Eigen::Vector3f n = Eigen::Vector3f::UnitX();
+  const double tilt = 0.05;  // rad
+  const Eigen::Vector3f tilted[2] = {(n + static_cast<float>(tilt) * Eigen::Vector3f::UnitY()).normalized(),
+                                     (n + static_cast<float>(tilt) * Eigen::Vector3f::UnitZ()).normalized()};
+  double measured2 = 0.0;
+  double predicted2 = 0.0;
+  int used = 0;
+  for (int sy = 40; sy <= 80; sy += 8) {
+    for (int sx = 50; sx <= 110; sx += 8) {
+      Eigen::Vector3d X;
+      REQUIRE(plane.intersect(Eigen::Vector2d(sx, sy), reference, k, &X));
+      Eigen::Vector2d uv;
+      REQUIRE(ok(project(X, target, k, &uv)));
+      std::array<std::uint8_t, kPatchPixels> patch;
+      extract_patch(reference_image, sx, sy, &patch);
+      Eigen::Matrix2d A;
+      REQUIRE(ok(plane_affine(X, n, reference, target, k, &A)));
+      NccTemplate tmpl;
+      warp_patch_template(patch, A, &tmpl);
+      const std::int32_t x = static_cast<std::int32_t>(std::lround(uv.x()));
+      const std::int32_t y = static_cast<std::int32_t>(std::lround(uv.y()));
+      Eigen::Vector2d at_true = uv;
+      if (!refine_subpixel(target_image, tmpl, x, y, 10, &at_true, nullptr)) continue;
+      std::array<Eigen::Matrix2d, 2> dA;
+      REQUIRE(ok(plane_affine_tilt_derivatives(X, n, reference, target, k, A, &dA)));
+      // Tilts about two orthogonal axes in the plane: the sum of both squared shifts is basis-free.
+      predicted2 += warp_shift_covariance(tmpl, A, dA, tilt * tilt).trace();
+      bool both = true;
+      double shift2 = 0.0;
+      for (const Eigen::Vector3f& m : tilted) {
+        Eigen::Matrix2d A_tilted;
+        REQUIRE(ok(plane_affine(X, m, reference, target, k, &A_tilted)));
+        NccTemplate off;
+        warp_patch_template(patch, A_tilted, &off);
+        Eigen::Vector2d at_tilted = at_true;
+        both = both && refine_subpixel(target_image, off, x, y, 10, &at_tilted, nullptr);
+        shift2 += (at_tilted - at_true).squaredNorm();
+      }
+      REQUIRE(both);
+      measured2 += shift2;
+      ++used;
+    }
+  }
+  REQUIRE(used > 30);
+  INFO("RMS shift measured " << std::sqrt(measured2 / used) << " px, predicted " << std::sqrt(predicted2 / used));
+  CHECK(std::sqrt(measured2 / used) > 0.01);  // the tilt matters at this change of view
+  CHECK(std::sqrt(predicted2 / used) == Approx(std::sqrt(measured2 / used)).epsilon(0.3));
+  // No uncertainty, no covariance.
+  std::array<Eigen::Matrix2d, 2> none = {Eigen::Matrix2d::Zero(), Eigen::Matrix2d::Zero()};
+  NccTemplate any;
+  make_template(std::array<std::uint8_t, kPatchPixels>{}, &any);
+  CHECK(warp_shift_covariance(any, Eigen::Matrix2d::Identity(), none, 1.0).norm() == 0.0);
 }
