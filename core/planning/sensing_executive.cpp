@@ -26,6 +26,7 @@ const char* SensingConfig::invalid_field() const {
   if (!ok(split.validate())) return "split.epsilon_cells";
   if (!std::isfinite(rho_sigma) || rho_sigma < 0.0) return "rho_sigma";
   if (!std::isfinite(eta_utility)) return "eta_utility";
+  if (!std::isfinite(eta_relative) || eta_relative < 0.0 || eta_relative >= 1.0) return "eta_relative";
   if (max_images < 2) return "max_images";
   if (!std::isfinite(orbit_radius_m) || orbit_radius_m <= 0.0) return "orbit_radius_m";
   if (!R_px2.allFinite() || R_px2(0, 0) <= 0.0 || R_px2(1, 1) <= 0.0 || R_px2.determinant() <= 0.0) return "R_px2";
@@ -91,7 +92,7 @@ Status SensingExecutive::begin(const SensingConfig& config, const GrayImageView&
   images_ = rejected_images_ = nbv_iterations_ = unreachable_nbv_ = split_fallbacks_ = 0;
   replans_without_image_ = stagnations_ = same_cell_nbvs_ = 0;
   tabu_size_ = 0;
-  path_length_cells_ = utility_ = precision_ = 0.0;
+  path_length_cells_ = utility_ = utility_planned_ = precision_ = 0.0;
   plan_size_ = plan_pos_ = segment_size_ = segment_pos_ = predicted_size_ = 0;
   last_replan_ = ReplanReason::kNone;
   last_update_ = UpdateReport{};
@@ -202,7 +203,7 @@ void SensingExecutive::replan_now() {
   nbv_ = goal;
   ++nbv_iterations_;
   predicted_size_ = 0;
-  utility_ = 0.0;
+  utility_ = utility_planned_ = 0.0;
   if (policy_uses_criterion(config_.policy)) predict_model(goal);
   plan_pos_ = 0;
   segment_size_ = segment_pos_ = 0;
@@ -357,6 +358,7 @@ void SensingExecutive::predict_model(const GridCell& goal) {
   }
   predicted_size_ = kept;
   utility_ = compute_utility();
+  utility_planned_ = utility_;
 }
 
 double SensingExecutive::compute_utility() const {
@@ -465,7 +467,9 @@ void SensingExecutive::on_image(const GrayImageView& image, const Viewpoint& pos
   }
   switch (config_.policy) {
     case PlannerPolicy::kNbv: {
-      if (predicted_size_ > 0 && utility_ < config_.eta_utility) {
+      const bool benefit_met = utility_ < config_.eta_utility ||
+                               (config_.eta_relative > 0.0 && utility_ < config_.eta_relative * utility_planned_);
+      if (predicted_size_ > 0 && benefit_met) {
         request_replan(ReplanReason::kUtility);
         return;
       }

@@ -69,6 +69,9 @@ struct SensingConfig {
   SplitPathConfig split{};
   double rho_sigma = 0.008;          // PrecisionLevel goal: stop when the average sigma < rho (scene units)
   double eta_utility = 0.0;          // replan when U < eta (units^6, a sum of covariance determinants)
+  // Also replan when U < eta_relative * U_0, U_0 = U right after PredictModel: the fraction of the NBV's
+  // predicted benefit still outstanding (scale-free; see core/planning/README.md). 0: off.
+  double eta_relative = 0.0;
   std::uint32_t max_images = 600;    // image budget, the two initial images included
   bool capture_on_segments = false;  // also sense at every intermediate cell of the A* segments
   double orbit_radius_m = 40.0;      // orbit baseline: circle radius around the grid centre
@@ -202,6 +205,7 @@ class SensingExecutive {
   std::size_t tabu_size_ = 0;
   double path_length_cells_ = 0.0;
   double utility_ = 0.0;
+  double utility_planned_ = 0.0;  // U_0: U right after PredictModel
   double precision_ = 0.0;
   ReplanReason last_replan_ = ReplanReason::kNone;
   UpdateReport last_update_{};

@@ -144,6 +144,9 @@ GroundTruth::GroundTruth(const EmbreeScene& scene, const OccupancyGrid& occupanc
     throw SimError("ground truth: coverage_distance and sigma_target must be positive");
   }
   if (!ok(intrinsics.validate())) throw SimError("ground truth: invalid intrinsics");
+  if (!(config.image_margin_px >= 0.0) || !(config.min_cos_incidence >= 0.0 && config.min_cos_incidence < 1.0)) {
+    throw SimError("ground truth: image_margin_px must be >= 0 and min_cos_incidence in [0, 1)");
+  }
   surface_area_ = scene.mesh().surface_area();
   samples_ = sample_surface(scene.mesh(), config.sample_count, config.seed);
   visible_.assign(samples_.size(), 0);
@@ -171,7 +174,8 @@ GroundTruth::GroundTruth(const EmbreeScene& scene, const OccupancyGrid& occupanc
       const int offset = (step + 1) / 2 * ((step % 2) != 0 ? 1 : -1);
       const auto& bin = bins[static_cast<std::size_t>(((first + offset) % kAzimuthBins + kAzimuthBins) % kAzimuthBins)];
       for (std::uint32_t v : bin) {
-        if (visible_from(scene_, intrinsics, views[v], s.position, s.normal)) {
+        if (visible_from(scene_, intrinsics, views[v], s.position, s.normal, config.image_margin_px,
+                         config.min_cos_incidence)) {
           visible_[i] = 1;
           return;
         }

@@ -1,10 +1,12 @@
 #pragma once
 // Ground truth for EVALUATION ONLY (never given to the planner). Definitions (sim_hal/README.md):
 //  (a) samples: sample_count area-weighted surface points (sample_surface, fixed seed);
-//  (b) visible samples: seen from at least one free grid cell's viewpoint (cell centre at the grid
-//      elevation, looking at the grid centre, up = +z): in front of the camera, projecting inside the
-//      image, front-facing (normal . (camera - X) > 0) and unoccluded (no hit between camera and X);
-//      visible area = total area * visible samples / samples;
+//  (b) visible samples: observable from at least one free grid cell's viewpoint (cell centre at the
+//      grid elevation, looking at the grid centre, up = +z): in front of the camera, projecting at least
+//      image_margin_px inside the image, not grazing (cos incidence >= min_cos_incidence) and
+//      unoccluded (no hit between camera and X); visible area = total area * visible samples / samples.
+//      The thresholds are the oracle's: a surface that no cell sees at more than grazing incidence
+//      cannot be measured, like the paper's "nearly horizontal region on top" (sim_hal/README.md);
 //  (c) coverage(d, sigma_target) = fraction of visible samples within distance d of the position of at
 //      least one primitive with primitive_sigma < sigma_target;
 //  (d) accuracy: each primitive's distance to the true surface (closest point, Embree point query),
@@ -36,6 +38,10 @@ struct GroundTruthConfig {
   std::uint32_t seed = 7;
   double coverage_distance = 0.5;   // d, scene units
   double sigma_target = 0.008;      // the paper's precision target, units
+  // (b) observability, the same thresholds as OracleConfig: a patch margin and no grazing views
+  // (incidence beyond ~78 degrees). 0 and 0 give the geometric visibility (any front-facing view).
+  double image_margin_px = kPatchSize / 2 + 1;
+  double min_cos_incidence = 0.2;
   int threads = 2;
 };
 
@@ -56,7 +62,7 @@ class GroundTruth {
               const GroundTruthConfig& config);
 
   const std::vector<SurfaceSample>& samples() const { return samples_; }
-  // visible()[i] != 0 when samples()[i] is visible from at least one free cell.
+  // visible()[i] != 0 when samples()[i] is visible (observable, see (b)) from at least one free cell.
   const std::vector<std::uint8_t>& visible() const { return visible_; }
   std::size_t visible_count() const { return visible_count_; }
   double surface_area() const { return surface_area_; }

@@ -24,14 +24,14 @@ int exit_code(const MissionSummary& s) { return s.reached_goal ? 0 : (s.failed ?
 std::string compare_table(const std::vector<MissionSummary>& runs) {
   std::ostringstream out;
   char line[512];
-  std::snprintf(line, sizeof line, "%-9s %-8s %7s %9s %11s %9s %10s %12s %14s  %s\n", "planner", "goal", "images",
-                "NBV iter", "path", "coverage", "avg sigma", "accuracy", "plan s/iter", "end");
+  std::snprintf(line, sizeof line, "%-9s %-8s %7s %9s %11s %9s %9s %10s %12s %14s  %s\n", "planner", "goal", "images",
+                "NBV iter", "path", "coverage", "model cov", "avg sigma", "accuracy", "plan s/iter", "end");
   out << line;
   for (const MissionSummary& s : runs) {
     const double per_iteration = s.nbv_iterations > 0 ? s.planning_seconds / s.nbv_iterations : 0.0;
-    std::snprintf(line, sizeof line, "%-9s %-8s %7u %9u %11.1f %8.1f%% %10.5f %12.5f %14.3f  %s\n", s.planner.c_str(),
-                  s.reached_goal ? "reached" : "no", s.images, s.nbv_iterations, s.path_length, 100.0 * s.coverage,
-                  s.mean_sigma, s.accuracy_rms, per_iteration, s.end_reason.c_str());
+    std::snprintf(line, sizeof line, "%-9s %-8s %7u %9u %11.1f %8.1f%% %8.1f%% %10.5f %12.5f %14.3f  %s\n",
+                  s.planner.c_str(), s.reached_goal ? "reached" : "no", s.images, s.nbv_iterations, s.path_length,
+                  100.0 * s.coverage, 100.0 * s.model_coverage, s.mean_sigma, s.accuracy_rms, per_iteration, s.end_reason.c_str());
     out << line;
   }
   return out.str();
@@ -61,6 +61,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_option("--sigma-target", options.sigma_target, "stop when the average sigma is below this (rho)")
       ->check(CLI::PositiveNumber);
   app.add_option("--eta", options.eta_utility, "replan when the utility U falls below this");
+  app.add_option("--eta-relative", options.eta_relative,
+                 "also replan when U falls below this fraction of U right after PredictModel (0: off)")
+      ->check(CLI::Range(0.0, 0.999));
   app.add_option("--epsilon", options.split_epsilon_cells, "SplitPath band half-width and halting distance, cells")
       ->check(CLI::Range(0.5, 1000.0));
   app.add_flag("--capture-on-segments", options.capture_on_segments,
@@ -120,7 +123,8 @@ int run_cli(int argc, const char* const* argv) {
       runs.push_back(summary);
       std::cout << to_string(p) << ": " << (summary.reached_goal ? "goals reached" : summary.end_reason) << " after "
                 << summary.images << " images, " << summary.nbv_iterations << " NBV iterations, path "
-                << summary.path_length << ", coverage " << 100.0 * summary.coverage << "%, avg sigma "
+                << summary.path_length << ", coverage " << 100.0 * summary.coverage << "% (model "
+                << 100.0 * summary.model_coverage << "%), avg sigma "
                 << summary.mean_sigma << ", accuracy rms " << summary.accuracy_rms << ", planning "
                 << summary.planning_seconds << " s, wall " << summary.wall_seconds << " s\n";
       if (!out_dir.empty()) {

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include <unistd.h>
@@ -218,6 +219,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   config.split.epsilon_cells = options.split_epsilon_cells;
   config.rho_sigma = options.sigma_target;
   config.eta_utility = options.eta_utility;
+  config.eta_relative = options.eta_relative;
   config.max_images = options.budget;
   config.capture_on_segments = options.capture_on_segments;
   config.orbit_radius_m = scene.viewing_distance;
@@ -308,6 +310,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.path_length = g_executive.path_length_cells() * geo.cell_size_m;
   summary.mean_sigma = average_sigma(g_pool, &summary.primitives);
   summary.coverage = setup.ground_truth->coverage(g_pool, g_goal.distance, options.sigma_target);
+  summary.model_coverage =
+      setup.ground_truth->coverage(g_pool, g_goal.distance, std::numeric_limits<double>::infinity());
   double rms = 0.0, p95 = 0.0, max_error = 0.0;
   setup.ground_truth->accuracy(g_pool, &rms, &p95, &max_error);
   summary.accuracy_rms = rms;

@@ -24,6 +24,7 @@ struct MissionOptions {
   double coverage_target = 0.99;       // ground truth coverage of the visible area
   double sigma_target = 0.008;         // PrecisionLevel goal rho, units
   double eta_utility = 0.0;
+  double eta_relative = 0.0;           // replan when U < eta_relative * U after PredictModel
   double split_epsilon_cells = 0.75;
   bool capture_on_segments = false;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images

@@ -44,7 +44,8 @@ struct MissionSummary {
   std::uint32_t images = 0;
   std::uint32_t nbv_iterations = 0;
   double path_length = 0.0;               // scene units
-  double coverage = 0.0;                  // ground truth, [0, 1]
+  double coverage = 0.0;                  // ground truth, [0, 1]: visible samples near a primitive with sigma < target
+  double model_coverage = 0.0;            // ground truth, [0, 1]: visible samples near any primitive
   double mean_sigma = 0.0;                // PrecisionLevel, units
   double accuracy_rms = 0.0;              // ground truth, units
   double accuracy_p95 = 0.0;

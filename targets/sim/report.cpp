@@ -228,6 +228,7 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"nbv_iterations\": " << s.nbv_iterations << ",\n"
       << "  \"path_length\": " << s.path_length << ",\n"
       << "  \"coverage\": " << s.coverage << ",\n"
+      << "  \"model_coverage\": " << s.model_coverage << ",\n"
       << "  \"mean_sigma\": " << s.mean_sigma << ",\n"
       << "  \"accuracy_rms\": " << s.accuracy_rms << ",\n"
       << "  \"accuracy_p95\": " << s.accuracy_p95 << ",\n"

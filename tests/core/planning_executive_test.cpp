@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <memory>
+#include <string>
 
 #include <catch2/catch.hpp>
 
@@ -86,6 +87,25 @@ TEST_CASE("ExecuteSensing: replans when U falls below eta") {
   CHECK(log.replans[1] == ReplanReason::kUtility);
   // The first path is long (the NBV is across the object): U ran out before its end.
   CHECK(log.replan_at[1] < 2u + 17u);
+}
+
+TEST_CASE("ExecuteSensing: replans when U falls below a fraction of its value after PredictModel") {
+  auto utility_replans = [](double eta_relative) {
+    Fixture f;
+    f.measurement.shrink = 0.9;  // det falls by 0.73 per image: U never reaches 0 within the budget
+    f.config.eta_utility = -1.0;
+    f.config.eta_relative = eta_relative;
+    f.config.max_images = 12;
+    REQUIRE(f.begin() == Status::kOk);
+    const MissionLog log = drive(*f.exec);
+    return static_cast<int>(std::count(log.replans.begin(), log.replans.end(), ReplanReason::kUtility));
+  };
+  CHECK(utility_replans(0.0) == 0);
+  CHECK(utility_replans(0.5) >= 1);
+  SensingConfig bad;
+  bad.eta_relative = 1.0;
+  CHECK(bad.validate() == Status::kInvalidArgument);
+  CHECK(std::string(bad.invalid_field()) == "eta_relative");
 }
 
 TEST_CASE("ExecuteSensing: replans when the path to the NBV gets blocked") {

@@ -3,6 +3,7 @@
 
 #include "core/model/primitive_pool.hpp"
 #include "sim_hal/ground_truth/ground_truth.hpp"
+#include "sim_hal/sim_error.hpp"
 #include "test_meshes.hpp"
 
 using namespace vantage;
@@ -50,6 +51,30 @@ TEST_CASE("visible set of a box: the sides and not the base underneath nor the t
   CHECK(truth.visible_count() == sides);
   CHECK(truth.visible_area() == Approx(600.0 * sides / 6000.0));
   CHECK(truth.surface_area() == Approx(600.0));
+}
+
+TEST_CASE("a surface seen only at grazing incidence is not part of the visible set", "[sim_hal][ground_truth]") {
+  // A horizontal square 0.4 below the cameras' plane, facing up: every free cell sees it front-facing,
+  // but at most at cos incidence 0.4 / 2.6 (the nearest free cell is about 2.6 away horizontally).
+  TriangleMesh sheet;
+  sheet.vertices = {{-0.5f, -0.5f, -0.4f}, {0.5f, -0.5f, -0.4f}, {0.5f, 0.5f, -0.4f}, {-0.5f, 0.5f, -0.4f}};
+  sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
+  const EmbreeScene scene{sheet};
+  const OccupancyGrid occupancy(scene.mesh(), small_grid(), 0.5);
+  GroundTruthConfig geometric;
+  geometric.sample_count = 500;
+  geometric.image_margin_px = 0.0;
+  geometric.min_cos_incidence = 0.0;
+  const GroundTruth any_view(scene, occupancy, small_intrinsics(), geometric);
+  CHECK(any_view.visible_count() == 500u);
+  GroundTruthConfig observable;  // the defaults: the oracle's thresholds
+  observable.sample_count = 500;
+  CHECK(observable.min_cos_incidence == Approx(0.2));
+  const GroundTruth measurable(scene, occupancy, small_intrinsics(), observable);
+  CHECK(measurable.visible_count() == 0u);
+  GroundTruthConfig bad;
+  bad.min_cos_incidence = 1.0;
+  CHECK_THROWS_AS(GroundTruth(scene, occupancy, small_intrinsics(), bad), SimError);
 }
 
 TEST_CASE("an occluded sample is not visible and a cell's view looks at the grid centre", "[sim_hal][ground_truth]") {

@@ -48,6 +48,7 @@ TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the 
   const std::string summary = read(out / "summary.json");
   CHECK(summary.find("\"reached_goal\": true") != std::string::npos);
   CHECK(summary.find("\"planner\": \"nbv\"") != std::string::npos);
+  CHECK(summary.find("\"model_coverage\": ") != std::string::npos);
   for (const char* file : {"grid.png", "performance.png", "uncertainty.png", "model.ply", "performance.dat"}) {
     INFO(file);
     CHECK(fs::file_size(out / file) > 100u);
