@@ -4,8 +4,7 @@
 #include <cstdlib>
 #include <limits>
 
-#include <Eigen/Cholesky>
-
+#include "core/frontend/float4.hpp"
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
@@ -25,97 +24,134 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
   // one for the central-difference gradient.
   constexpr int kMargin = 3;
   constexpr int kBlock = kPatchSize + 2 * kMargin;
+  // Rows padded to whole lane groups with finite zeros: the lanes past the patch are computed and dropped.
+  constexpr int kBlockStride = 16;
+  constexpr int kLanes = 8;  // a patch row as two Float4, the eighth lane masked
+  constexpr int kResampled = kPatchSize + 2;  // the patch plus a one-pixel ring for the gradient
+  constexpr int kResampledStride = 12;
+  static_assert(kPatchSize <= kLanes && kResampled + 3 <= kResampledStride &&
+                    kMargin - 1 + kResampledStride + 1 <= kBlockStride,
+                "lane padding too small for the patch size");
   if (!patch_inside(image, x, y, kMargin) || tmpl.valid_count < 8) return false;
   Eigen::Vector2d d = *uv_px - Eigen::Vector2d(x, y);
   if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0)) return false;
-  float block[kBlock][kBlock];
-  float gx[kBlock][kBlock];
-  float gy[kBlock][kBlock];
+  alignas(16) float block[kBlock][kBlockStride];
+  const std::int32_t block_x = x - kPatchRadius - kMargin;
   for (int j = 0; j < kBlock; ++j) {
-    const std::uint8_t* row = image.pixels + (y - kPatchRadius - kMargin + j) * image.stride_bytes + (x - kPatchRadius - kMargin);
-    for (int i = 0; i < kBlock; ++i) block[j][i] = row[i];
+    bytes_to_floats(image.pixels + (y - kPatchRadius - kMargin + j) * image.stride_bytes + block_x, kBlock,
+                    image.width_px - block_x, block[j], kBlockStride);
   }
-  for (int j = 1; j < kBlock - 1; ++j) {
-    for (int i = 1; i < kBlock - 1; ++i) {
-      gx[j][i] = 0.5f * (block[j][i + 1] - block[j][i - 1]);
-      gy[j][i] = 0.5f * (block[j + 1][i] - block[j - 1][i]);
+  // The template in rows of 8 lanes (the template holds 0 at masked pixels; the eighth lane is masked).
+  alignas(16) float t8[kPatchSize][kLanes];
+  alignas(16) float m8[kPatchSize][kLanes];
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int tx = 0; tx < kLanes; ++tx) {
+      t8[ty][tx] = tx < kPatchSize ? tmpl.values[ty * kPatchSize + tx] : 0.0f;
+      m8[ty][tx] = tx < kPatchSize ? tmpl.mask[ty * kPatchSize + tx] : 0.0f;
     }
   }
+  // Template-only sums of J^T J (J = [gx, gy, -t, -1]) do not change between iterations; beta starts at
+  // the mean of the image patch.
+  Float4 sum_tt = splat4(0.0f);
+  Float4 sum_t = splat4(0.0f);
+  Float4 sum_image = splat4(0.0f);
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int lane = 0; lane < kLanes; lane += 4) {
+      const Float4 t = load4(&t8[ty][lane]);
+      sum_tt += t * t;
+      sum_t += t;
+      sum_image += load4(&m8[ty][lane]) * load4(&block[ty + kMargin][kMargin + lane]);
+    }
+  }
+  const double s_tt = sum_lanes(sum_tt);
+  const double s_t = sum_lanes(sum_t);
+  double beta = static_cast<double>(sum_lanes(sum_image)) / tmpl.valid_count;
+  const double s_1 = tmpl.valid_count;
   double alpha = 1.0;
-  double beta = 0.0;
-  {
-    double sum = 0.0;
-    for (int ty = 0; ty < kPatchSize; ++ty) {
-      for (int tx = 0; tx < kPatchSize; ++tx) sum += tmpl.mask[ty * kPatchSize + tx] * block[ty + kMargin][tx + kMargin];
-    }
-    beta = sum / tmpl.valid_count;
-  }
+  // The photometric block C = [[s_tt, s_t], [s_t, s_1]] of J^T J and its inverse (the 4x4 normal
+  // equations are solved by the Schur complement on the shift: same solution, 2x2 inverses only).
+  const double det_c = s_tt * s_1 - s_t * s_t;
+  if (!(det_c > 0.0)) return false;
+  Eigen::Matrix2d C_inv;
+  C_inv << s_1 / det_c, -s_t / det_c, -s_t / det_c, s_tt / det_c;
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
   for (int iteration = 0; iteration < iterations; ++iteration) {
     const int ix = static_cast<int>(std::floor(d.x()));
     const int iy = static_cast<int>(std::floor(d.y()));
     const float fx = static_cast<float>(d.x() - ix);
     const float fy = static_cast<float>(d.y() - iy);
-    const float w00 = (1.0f - fx) * (1.0f - fy);
-    const float w01 = fx * (1.0f - fy);
-    const float w10 = (1.0f - fx) * fy;
-    const float w11 = fx * fy;
-    // Upper triangle of J^T J and J^T r as scalars (J = [gx, gy, -t, -1]): this loop is the tracker's hot path.
-    double s_xx = 0, s_xy = 0, s_xt = 0, s_x = 0, s_yy = 0, s_yt = 0, s_y = 0, s_tt = 0, s_t = 0, s_1 = 0;
-    double r_x = 0, r_y = 0, r_t = 0, r_1 = 0, r_r = 0;
-    for (int ty = 0; ty < kPatchSize; ++ty) {
-      const int j = ty + kMargin + iy;
-      for (int tx = 0; tx < kPatchSize; ++tx) {
-        const int k = ty * kPatchSize + tx;
-        if (tmpl.mask[k] <= 0.5f) continue;
-        const int i = tx + kMargin + ix;
-        const float value = w00 * block[j][i] + w01 * block[j][i + 1] + w10 * block[j + 1][i] + w11 * block[j + 1][i + 1];
-        const float grad_x = w00 * gx[j][i] + w01 * gx[j][i + 1] + w10 * gx[j + 1][i] + w11 * gx[j + 1][i + 1];
-        const float grad_y = w00 * gy[j][i] + w01 * gy[j][i + 1] + w10 * gy[j + 1][i] + w11 * gy[j + 1][i + 1];
-        const double gx_d = grad_x;
-        const double gy_d = grad_y;
-        const double t = tmpl.values[k];
-        const double r = value - alpha * t - beta;
-        s_xx += gx_d * gx_d;
-        s_xy += gx_d * gy_d;
-        s_xt += gx_d * t;
-        s_x += gx_d;
-        s_yy += gy_d * gy_d;
-        s_yt += gy_d * t;
-        s_y += gy_d;
-        s_tt += t * t;
-        s_t += t;
-        s_1 += 1.0;
-        r_x += gx_d * r;
-        r_y += gy_d * r;
-        r_t += t * r;
-        r_1 += r;
-        r_r += r * r;
+    const Float4 w00 = splat4((1.0f - fx) * (1.0f - fy));
+    const Float4 w01 = splat4(fx * (1.0f - fy));
+    const Float4 w10 = splat4((1.0f - fx) * fy);
+    const Float4 w11 = splat4(fx * fy);
+    // The image resampled at the shifted patch and its ring: resampled[j][i] = I(patch (i - 1, j - 1) + d).
+    // Bilinear interpolation is linear and shift-invariant, so central differences of the resampled
+    // values equal the resampled central-difference gradients: one interpolation per pixel, not three.
+    alignas(16) float resampled[kResampled][kResampledStride];
+    for (int j = 0; j < kResampled; ++j) {
+      const float* r0 = &block[j + kMargin - 1 + iy][kMargin - 1 + ix];
+      const float* r1 = r0 + kBlockStride;
+      for (int i = 0; i < kResampledStride; i += 4) {
+        store4(&resampled[j][i],
+               w00 * load4(r0 + i) + w01 * load4(r0 + i + 1) + w10 * load4(r1 + i) + w11 * load4(r1 + i + 1));
       }
     }
-    Eigen::Matrix4d JtJ;
-    JtJ << s_xx, s_xy, -s_xt, -s_x,
-           s_xy, s_yy, -s_yt, -s_y,
-           -s_xt, -s_yt, s_tt, s_t,
-           -s_x, -s_y, s_t, s_1;
-    const Eigen::Vector4d Jtr(r_x, r_y, -r_t, -r_1);
-    const Eigen::LDLT<Eigen::Matrix4d> ldlt(JtJ);
-    if (ldlt.info() != Eigen::Success) return false;
-    const Eigen::Vector4d step = -ldlt.solve(Jtr);
-    if (!step.allFinite()) return false;
-    const bool last = iteration + 1 == iterations || step.head<2>().norm() < 1e-3;
+    // J^T J and J^T r as lane sums (r = I(p + d) - alpha * t - beta): this loop is the tracker's hot path.
+    const Float4 alpha4 = splat4(static_cast<float>(alpha));
+    const Float4 beta4 = splat4(static_cast<float>(beta));
+    const Float4 half = splat4(0.5f);
+    Float4 a_xx = splat4(0.0f), a_xy = a_xx, a_xt = a_xx, a_x = a_xx, a_yy = a_xx, a_yt = a_xx, a_y = a_xx;
+    Float4 b_x = a_xx, b_y = a_xx, b_t = a_xx, b_1 = a_xx, b_rr = a_xx;
+    for (int ty = 0; ty < kPatchSize; ++ty) {
+      for (int lane = 0; lane < kLanes; lane += 4) {
+        const float* row = &resampled[ty + 1][lane];
+        const Float4 m = load4(&m8[ty][lane]);
+        const Float4 t = load4(&t8[ty][lane]);
+        const Float4 gx = half * (load4(row + 2) - load4(row)) * m;
+        const Float4 gy = half * (load4(row + 1 + kResampledStride) - load4(row + 1 - kResampledStride)) * m;
+        const Float4 r = (load4(row + 1) - alpha4 * t - beta4) * m;
+        a_xx += gx * gx;
+        a_xy += gx * gy;
+        a_xt += gx * t;
+        a_x += gx;
+        a_yy += gy * gy;
+        a_yt += gy * t;
+        a_y += gy;
+        b_x += gx * r;
+        b_y += gy * r;
+        b_t += t * r;
+        b_1 += r;
+        b_rr += r * r;
+      }
+    }
+    // Normal equations [[A, B], [B^T, C]] (shift, photometric) step = -(g_a, g_c).
+    Eigen::Matrix2d A;
+    A << sum_lanes(a_xx), sum_lanes(a_xy), sum_lanes(a_xy), sum_lanes(a_yy);
+    Eigen::Matrix2d B;
+    B << -sum_lanes(a_xt), -sum_lanes(a_x), -sum_lanes(a_yt), -sum_lanes(a_y);
+    const Eigen::Vector2d g_a(sum_lanes(b_x), sum_lanes(b_y));
+    const Eigen::Vector2d g_c(-sum_lanes(b_t), -sum_lanes(b_1));
+    // Schur complement: its inverse is the shift block of (J^T J)^-1.
+    const Eigen::Matrix2d schur = A - B * C_inv * B.transpose();
+    const double det_s = schur(0, 0) * schur(1, 1) - schur(0, 1) * schur(1, 0);
+    if (!(det_s > 0.0) || !(schur(0, 0) > 0.0)) return false;
+    Eigen::Matrix2d schur_inv;
+    schur_inv << schur(1, 1) / det_s, -schur(0, 1) / det_s, -schur(1, 0) / det_s, schur(0, 0) / det_s;
+    const Eigen::Vector2d step_shift = -schur_inv * (g_a - B * (C_inv * g_c));
+    const Eigen::Vector2d step_photometric = -C_inv * (g_c + B.transpose() * step_shift);
+    if (!step_shift.allFinite() || !step_photometric.allFinite()) return false;
+    const bool last = iteration + 1 == iterations || step_shift.norm() < 1e-3;
     if (last) {
       // Least-squares covariance of the shift: residual variance (image noise plus what the model misses,
       // 4 parameters fitted) times the shift block of (J^T J)^-1.
       const double dof = s_1 - 4.0;
-      const Eigen::Matrix4d JtJ_inv = ldlt.solve(Eigen::Matrix4d::Identity());
-      covariance = (dof > 0.0 ? r_r / dof : 0.0) * JtJ_inv.topLeftCorner<2, 2>();
+      covariance = (dof > 0.0 ? static_cast<double>(sum_lanes(b_rr)) / dof : 0.0) * schur_inv;
     }
-    d += step.head<2>();
-    alpha += step(2);
-    beta += step(3);
+    d += step_shift;
+    alpha += step_photometric(0);
+    beta += step_photometric(1);
     if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0) || !(alpha > 0.0)) return false;
-    if (step.head<2>().norm() < 1e-3) break;
+    if (step_shift.norm() < 1e-3) break;
   }
   if (!covariance.allFinite()) return false;
   *uv_px = Eigen::Vector2d(x, y) + d;
@@ -142,18 +178,15 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   if (y1 > image.height_px - 1 - kPatchRadius) y1 = image.height_px - 1 - kPatchRadius;
   const std::int32_t w = x1 - x0 + 1;
   const std::int32_t h = y1 - y0 + 1;
-  if (w < 3 || h < 3 || static_cast<std::size_t>(w) * static_cast<std::size_t>(h) > scratch.size()) {
+  if (w < 3 || h < 3) return MatchOutcome::kNoRoom;
+  // NCC of the whole box at once (vectorized; cheaper than evaluating only the needed centres one by one).
+  float* ncc = scratch.data();
+  const std::size_t box_size = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  if (box_size > scratch.size() ||
+      !ncc_box(image, tmpl, x0, y0, w, h, Span<float>(ncc + box_size, scratch.size() - box_size), ncc)) {
     return MatchOutcome::kNoRoom;
   }
-  // NCC evaluated lazily: only the candidates inside the ellipse and their 8-neighbours are ever needed.
-  float* ncc = scratch.data();
-  constexpr float kUnset = -3.0f;
-  for (std::int32_t i = 0; i < w * h; ++i) ncc[i] = kUnset;
-  auto value = [&](std::int32_t x, std::int32_t y) {
-    float& v = ncc[(y - y0) * w + x - x0];
-    if (v == kUnset) v = ncc_at(image, x, y, tmpl);
-    return v;
-  };
+  auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - y0) * w + x - x0]; };
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
     const float c = value(x, y);
     for (std::int32_t dy = -1; dy <= 1; ++dy) {

@@ -3,6 +3,7 @@
 // segment (initialization and model augmentation). Both take the best local NCC maximum, require it
 // above a threshold and unique (no other local maximum, away from the peak's 8-neighbourhood, within
 // uniqueness_ratio of it), and refine it to subpixel by a parabola fit in x and in y.
+#include <cstddef>
 #include <cstdint>
 
 #include <Eigen/Core>
@@ -50,9 +51,11 @@ struct WindowQuery {
   std::int32_t half_height_px = 2;
 };
 
-// Scratch floats a window search needs for a given half size.
-constexpr std::int32_t window_scratch_size(std::int32_t max_half_px) {
-  return (2 * max_half_px + 3) * (2 * max_half_px + 3);
+// Scratch floats a window search needs for a given half size: the NCC of the box (the window plus a
+// one-pixel ring) and ncc_box's working space.
+constexpr std::size_t window_scratch_size(std::int32_t max_half_px) {
+  const std::int32_t box = 2 * max_half_px + 3;
+  return static_cast<std::size_t>(box) * box + ncc_box_scratch_size(box, box);
 }
 
 // covariance_px2 (may be null): the match's covariance from refine_subpixel, NaN when
