@@ -191,6 +191,10 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   next_view_index_ = 1;
   // Primitives someone else put in the pool have a normal nobody fitted: the facing-camera prior.
   normal_tilt_variance_.fill(static_cast<float>(config_.facing_normal_tilt_variance));
+  for (TemplateNoise& noise : template_noise_) {
+    noise.cross_covariance.setZero();
+    noise.covariance_px2.setZero();
+  }
   reset_cells();
   spawn(first, first_view, first_index, second, second_view, pool, out);
   remember(second, second_view);
@@ -296,8 +300,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
         continue;
       }
     }
+    // B: where a shift of the reference patch's feature shows in this image (through the warp, if any).
+    Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
     if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
       warp_patch_template(p.patch, A, &tmpl);
+      B = A.inverse();
     } else {
       make_template(p.patch, &tmpl);
     }
@@ -333,8 +340,20 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     ++report.matched;
     EkfConfig ekf = config_.ekf;
-    ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
-    const Status updated = iterated_ekf_update(p, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
+    CommonObservationError common;
+    const bool template_noise = config_.model_template_noise && config_.adaptive_R && i < kFrontEndMaxPrimitives &&
+                                fit_covariance.allFinite();
+    if (template_noise) {
+      common.covariance_px2 = template_noise_[i].covariance_px2.cast<double>();
+      common.cross_covariance = template_noise_[i].cross_covariance.cast<double>();
+      common.B = B;
+      ekf.R_px2 = measurement_R(0.5 * fit_covariance) + warp_covariance;
+    } else {
+      ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
+    }
+    const Status updated =
+        iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
+    if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
       p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
@@ -382,6 +401,26 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
   if (config_.model_normal_uncertainty && !(tilt_variance < normal_tilt_variance(i))) return;
   p.normal_world = normal;
   set_normal_tilt_variance(i, tilt_variance);
+}
+
+void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
+                                            const Eigen::Matrix2d& R_other_px2, const Eigen::Matrix2d& fit_covariance_px2) {
+  if (i >= kFrontEndMaxPrimitives) return;
+  TemplateNoise& noise = template_noise_[i];
+  noise.cross_covariance.setZero();
+  noise.covariance_px2.setZero();
+  Eigen::Vector2d unused;
+  Eigen::Matrix<double, 2, 3> H;
+  if (!config_.model_template_noise || !config_.adaptive_R || !fit_covariance_px2.allFinite() ||
+      !ok(project_with_jacobian(p.X_world, other_view, intrinsics_, &unused, &H))) {
+    return;
+  }
+  // The template's half of the first match's fit covariance; the triangulated error carries it through
+  // the other image's observation: X_hat - X = Sigma H^T R^-1 (c + e) + ..., so C = Sigma H^T R^-1 P_c
+  // (the unwarped epipolar match: B = I).
+  const Eigen::Matrix2d P_c = 0.5 * fit_covariance_px2;
+  noise.covariance_px2 = P_c.cast<float>();
+  noise.cross_covariance = (p.Sigma_world * H.transpose() * R_other_px2.inverse() * P_c).cast<float>();
 }
 
 double ImageFrontEnd::normal_tilt_variance(PrimitiveIndex i) const {
@@ -535,6 +574,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       if (!ok(inserted)) continue;
       ++report.spawned;
       set_normal_tilt_variance(index, config_.facing_normal_tilt_variance);
+      remember_template_noise(index, p, other_view, observation.R_b_px2, fit_covariance);
       cell_primitive_[cell] = index;
       cell_depth_[cell] = static_cast<float>(depth);
       cell_state_[cell] |= kCellSpawned;

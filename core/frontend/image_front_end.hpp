@@ -76,6 +76,13 @@ struct FrontEndConfig {
   // (surfaces show in proportion to their projected area) have variance 1/4 each.
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
+  // The reference patch's own pixel noise shifts the feature every match of a primitive looks for by the
+  // same amount: an error common to all its observations, carried in the consider form of the update
+  // (core/frontend/iterated_update.hpp) instead of averaging away. Its covariance is half the fit
+  // covariance of the primitive's first match (the same camera gives every frame the same noise, and
+  // the fit's residual holds both frames' noise), and half of each later match's fit covariance is its
+  // own, independent part. Needs adaptive_R.
+  bool model_template_noise = true;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -167,6 +174,10 @@ class ImageFrontEnd final : public MeasurementSource {
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,
                   const Eigen::Vector3d& camera_world, PrimitivePoolView& pool);
   double normal_tilt_variance(PrimitiveIndex i) const;
+  // The template noise of a new primitive i triangulated from its seed and a match in other_view with
+  // covariance R_other_px2 (of which the fit's fit_covariance_px2).
+  void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
+                               const Eigen::Matrix2d& R_other_px2, const Eigen::Matrix2d& fit_covariance_px2);
   void set_normal_tilt_variance(PrimitiveIndex i, double variance);
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
@@ -197,6 +208,13 @@ class ImageFrontEnd final : public MeasurementSource {
 
   // Tilt variance (rad^2 per axis) of each primitive's normal, by pool index.
   std::array<float, kFrontEndMaxPrimitives> normal_tilt_variance_{};
+  // The reference patch's noise per primitive (FrontEndConfig::model_template_noise): its covariance in
+  // the creating image and its cross-covariance with the position error. Zero: not modelled.
+  struct TemplateNoise {
+    Eigen::Matrix<float, 3, 2, Eigen::DontAlign> cross_covariance;
+    Eigen::Matrix<float, 2, 2, Eigen::DontAlign> covariance_px2;
+  };
+  std::array<TemplateNoise, kFrontEndMaxPrimitives> template_noise_;
 
   DepthBuffer<> depth_buffer_;
   std::array<float, window_scratch_size(kFrontEndMaxHalfWindow)> window_scratch_{};

@@ -4,6 +4,15 @@
 // that length: a single EKF step linearized at the prior biases the depth toward the camera and leaves
 // a covariance too small for the error. Relinearizing H at the updated estimate removes that bias; for a
 // well-estimated primitive the first iteration already converges, so it costs one extra projection.
+//
+// The consider form (Schmidt-Kalman) also carries an error common to all of a primitive's observations:
+// o = phi(X) + B c + e, with c ~ N(0, P_c) the same in every image (the reference patch's own pixel noise
+// shifts the feature every match looks for, by c in the reference image; B maps that shift into the new
+// image) and e ~ N(0, R) independent. c is not estimated, but its cross-covariance with X's error,
+// C = Cov(X_hat - X, c), is kept and updated, so repeated observations do not average the common error
+// away: S = H Sigma H^T - H C B^T - B C^T H^T + B P_c B^T + R, K = (Sigma H^T - C B^T) S^-1,
+// Sigma' = (I - KH) Sigma (I - KH)^T + (I - KH) C B^T K^T + K B C^T (I - KH)^T + K (B P_c B^T + R) K^T,
+// C' = (I - KH) C + K B P_c. With P_c = 0 and C = 0 it is the iterated EKF.
 #include <Eigen/Core>
 
 #include "core/common/status.hpp"
@@ -14,11 +23,25 @@
 
 namespace vantage {
 
+// The error common to a primitive's observations (see above): its covariance in the reference image
+// (px^2), its cross-covariance with the primitive's position error (units x px), and B for this image.
+struct CommonObservationError {
+  Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Zero();
+  Eigen::Matrix<double, 3, 2> cross_covariance = Eigen::Matrix<double, 3, 2>::Zero();
+  Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
+};
+
 // Same contract as ekf_update (core/estimation/ekf.hpp): the Mahalanobis gate on the innovation at the
 // prior, the Joseph-form covariance (with H at the final iterate), the primitive unchanged on any error,
 // counts into stats. max_iterations >= 1 (1 is the plain EKF update).
 Status iterated_ekf_update(Primitive& primitive, const Eigen::Vector2d& observation_px, const Viewpoint& view,
                            const PinholeIntrinsics& intrinsics, const EkfConfig& config, int max_iterations,
                            EkfStats* stats);
+
+// The consider form: config.R_px2 is the independent part R; common->cross_covariance is updated with
+// the primitive (unchanged on error).
+Status iterated_consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
+                                const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
+                                int max_iterations, EkfStats* stats);
 
 }  // namespace vantage

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include "core/frontend/patch_search.hpp"
+#include "core/frontend/iterated_update.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
@@ -236,4 +237,53 @@ TEST_CASE("a tilted normal moves the match as the warp covariance predicts") {
   NccTemplate any;
   make_template(std::array<std::uint8_t, kPatchPixels>{}, &any);
   CHECK(warp_shift_covariance(any, Eigen::Matrix2d::Identity(), none, 1.0).norm() == 0.0);
+}
+
+TEST_CASE("the consider update stays consistent under an error common to all observations") {
+  // A point seen from six views, each observation off by the same c ~ N(0, P_c) plus its own e ~ N(0, R).
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Eigen::Vector3d truth(0.0, 0.5, -0.3);
+  std::vector<Viewpoint> views;
+  for (int j = 0; j < 6; ++j) {
+    const double az = 0.05 + 0.08 * j;
+    views.push_back(vantage::test::looking_at_origin({30.0 * std::cos(az), 30.0 * std::sin(az), 1.0 * j}));
+  }
+  const Eigen::Matrix2d P_c = Eigen::Vector2d(0.04, 0.02).asDiagonal();
+  const Eigen::Matrix2d R = 0.03 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix3d Sigma0 = Eigen::Vector3d(4.0, 0.05, 0.05).asDiagonal();  // long along x (depth)
+  const Eigen::LLT<Eigen::Matrix3d> prior(Sigma0);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> z(0.0, 1.0);
+  EkfConfig config;
+  config.gate_chi2 = 1e12;  // no gate: the data hold no outliers
+  double nees_consider = 0.0;
+  double nees_plain = 0.0;
+  const int trials = 1000;
+  for (int trial = 0; trial < trials; ++trial) {
+    Primitive consider;
+    consider.X_world = truth + prior.matrixL() * Eigen::Vector3d(z(rng), z(rng), z(rng));
+    consider.Sigma_world = Sigma0;
+    Primitive plain = consider;
+    CommonObservationError common;
+    common.covariance_px2 = P_c;
+    const Eigen::Vector2d c(std::sqrt(P_c(0, 0)) * z(rng), std::sqrt(P_c(1, 1)) * z(rng));
+    for (const Viewpoint& view : views) {
+      Eigen::Vector2d uv;
+      REQUIRE(ok(project(truth, view, k, &uv)));
+      const Eigen::Vector2d o = uv + c + std::sqrt(R(0, 0)) * Eigen::Vector2d(z(rng), z(rng));
+      config.R_px2 = R;
+      REQUIRE(ok(iterated_consider_update(consider, &common, o, view, k, config, 5, nullptr)));
+      config.R_px2 = R + P_c;  // the same total per observation, taken as independent
+      REQUIRE(ok(iterated_ekf_update(plain, o, view, k, config, 5, nullptr)));
+    }
+    const Eigen::Vector3d e = consider.X_world - truth;
+    nees_consider += e.dot(consider.Sigma_world.ldlt().solve(e)) / trials;
+    const Eigen::Vector3d f = plain.X_world - truth;
+    nees_plain += f.dot(plain.Sigma_world.ldlt().solve(f)) / trials;
+  }
+  INFO("mean NEES: consider " << nees_consider << ", common error taken as independent " << nees_plain);
+  // 95% band of the mean of 1000 chi2(3) values: 3 +- 0.15.
+  CHECK(nees_consider > 2.85);
+  CHECK(nees_consider < 3.15);
+  CHECK(nees_plain > 3.5);  // averaging the common error away is over-confident
 }
