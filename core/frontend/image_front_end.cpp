@@ -336,6 +336,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
       p.flags |= primitive_flags::kLostTrack;
+      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
       continue;
     }
     ++report.matched;
@@ -360,7 +361,17 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
+      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
     }
+  }
+}
+
+void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {
+  if (!config_.confirm_spawns || !ok(pool.erase(i))) return;
+  ++stats_.unconfirmed_erased;
+  if (cell_primitive_[centre_cell] == i) {
+    cell_primitive_[centre_cell] = kInvalidPrimitive;
+    cell_state_[centre_cell] = 0;
   }
 }
 
@@ -369,7 +380,7 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
   for (std::int32_t cy = 0; cy < cells_y_; ++cy) {
     for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
       const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
-      if ((cell_state_[cell] & kCellUpdated) == 0) continue;
+      if ((cell_state_[cell] & kCellUpdated) == 0 || !pool.is_alive(cell_primitive_[cell])) continue;
       Primitive& p = pool[cell_primitive_[cell]];
       // Refit at n, 2n, 4n, 8n updates (n = normal_refit_observations): the normal follows the estimates
       // as they sharpen, at an amortized cost of a few fits per primitive.

@@ -83,6 +83,11 @@ struct FrontEndConfig {
   // the fit's residual holds both frames' noise), and half of each later match's fit covariance is its
   // own, independent part. Needs adaptive_R.
   bool model_template_noise = true;
+  // A new primitive rests on one two-view match. Its first predicted re-observation confirms it; when
+  // that fails (no match, or one the gate refuses) it is erased rather than kept with an estimate nothing
+  // else supports (a wrong epipolar match, a patch across a depth edge). Counted in
+  // FrontEndStats::unconfirmed_erased.
+  bool confirm_spawns = true;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -126,6 +131,7 @@ struct FrontEndStats {
   std::uint64_t seeds_tried = 0;              // textured seeds searched along an epipolar line
   std::uint64_t seeds_matched = 0;
   std::uint64_t seeds_rejected_triangulation = 0;
+  std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
   EkfStats ekf;
 };
 
@@ -162,6 +168,8 @@ class ImageFrontEnd final : public MeasurementSource {
   std::size_t cell_of(const Eigen::Vector2d& uv_px) const;
   void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
+  // Erases new primitive i whose first re-observation failed (FrontEndConfig::confirm_spawns).
+  void drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.

@@ -123,6 +123,41 @@ TEST_CASE("tracking a third view matches most visible primitives and shrinks the
   CHECK(std::sqrt(sum_sq / updated) < 2.0);
 }
 
+TEST_CASE("a new primitive whose first re-observation fails is erased; a confirmed one only loses track") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  // Near the image centre (visible in the next view), give a few primitives a patch the image does not
+  // show (a checkerboard): their match must fail. Half of them count as confirmed already.
+  std::vector<PrimitiveIndex> unconfirmed;
+  std::vector<PrimitiveIndex> confirmed;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound() && confirmed.size() < 5; ++i) {
+    if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
+    for (int j = 0; j < kPatchPixels; ++j) g_pool[i].patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
+    if (unconfirmed.size() < 5) {
+      unconfirmed.push_back(i);
+    } else {
+      g_pool[i].observation_count = 1;
+      confirmed.push_back(i);
+    }
+  }
+  REQUIRE(confirmed.size() == 5);
+  const Viewpoint third = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
+  const auto image = scene.render(third);
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+  // Erased (the slot may hold a primitive spawned from the third image since).
+  for (PrimitiveIndex i : unconfirmed) CHECK((!g_pool.is_alive(i) || g_pool[i].creating_view == 2u));
+  for (PrimitiveIndex i : confirmed) {
+    REQUIRE(g_pool.is_alive(i));
+    CHECK((g_pool[i].flags & primitive_flags::kLostTrack) != 0);
+  }
+  CHECK(g_front_end.stats().unconfirmed_erased >= unconfirmed.size());
+  // Most new primitives are confirmed by the third view.
+  CHECK(g_front_end.stats().unconfirmed_erased < 0.1 * report.predicted_in_view);
+}
+
 TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
   Scene scene;
   const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
@@ -133,12 +168,14 @@ TEST_CASE("surface no primitive covers spawns primitives there, matched against 
     if (g_pool.is_alive(i) && g_pool[i].X_world.y() > 4.0) REQUIRE(ok(g_pool.erase(i)));
   }
   const std::size_t before = g_pool.size();
+  const std::uint64_t erased_before = g_front_end.stats().unconfirmed_erased;
   const Viewpoint third = vantage::test::looking_at_origin({39.5, 4.0, 1.0});
   const auto image = scene.render(third);
   UpdateReport report;
   REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
   CHECK(report.spawned > 100u);
-  CHECK(g_pool.size() == before + report.spawned - report.merged);
+  const std::uint64_t erased = g_front_end.stats().unconfirmed_erased - erased_before;
+  CHECK(g_pool.size() == before + report.spawned - report.merged - erased);
   int new_ones = 0;
   int in_hole = 0;
   double sum_sq = 0.0;
