@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
+#include "core/frontend/iterated_update.hpp"
 #include "core/geometry/projection.hpp"
 #include "sim_hal/ground_truth/ground_truth.hpp"
 #include "sim_hal/sim_error.hpp"
@@ -23,6 +24,7 @@ OracleMeasurementSource::OracleMeasurementSource(const EmbreeScene& scene, const
     throw SimError("oracle: pixel_sigma_px must be positive");
   }
   if (config_.site_count == 0) throw SimError("oracle: site_count must be positive");
+  if (config_.ekf_iterations < 1 || config_.ekf_iterations > 20) throw SimError("oracle: ekf_iterations must be 1..20");
   if (!(config_.image_margin_px >= 0.0) || !(config_.min_cos_incidence >= 0.0 && config_.min_cos_incidence < 1.0)) {
     throw SimError("oracle: image_margin_px must be >= 0 and min_cos_incidence in [0, 1)");
   }
@@ -126,7 +128,9 @@ Status OracleMeasurementSource::update(const GrayImageView& /*image*/, const Vie
     if (!ok(project(sites_[site].position, view, config_.intrinsics, &uv))) continue;
     ++local.matched;
     const Eigen::Vector2d o = uv + Eigen::Vector2d(normal(rng_), normal(rng_));
-    const Status u = ekf_update(pool[i], o, view, config_.intrinsics, ekf_, &stats);
+    const Status u = config_.ekf_iterations > 1
+                         ? iterated_ekf_update(pool[i], o, view, config_.intrinsics, ekf_, config_.ekf_iterations, &stats)
+                         : ekf_update(pool[i], o, view, config_.intrinsics, ekf_, &stats);
     if (ok(u)) {
       ++local.updated;
       pool[i].flags = static_cast<std::uint16_t>(pool[i].flags & ~primitive_flags::kLostTrack);

@@ -30,6 +30,10 @@ struct OracleConfig {
   PinholeIntrinsics intrinsics = PinholeIntrinsics::default_vga();
   double pixel_sigma_px = 0.5;          // R = sigma^2 I for the observations and for the EKF
   double gate_chi2 = kChiSquare2Dof95;
+  // Iterations of the measurement update (core/frontend/iterated_update.hpp); 1 is the plain EKF. The
+  // first updates after a small-baseline start linearize far from the truth along depth: relinearizing
+  // keeps the covariance honest (README of core/frontend, "Measured").
+  int ekf_iterations = 1;
   std::size_t site_count = 70000;       // candidate primitive sites on the surface
   double image_margin_px = kPatchSize / 2 + 1;
   double min_cos_incidence = 0.2;       // no observation at grazing angles (beyond ~78 degrees)
