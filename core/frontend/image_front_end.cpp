@@ -253,18 +253,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     Primitive& p = pool[i];
     Eigen::Vector2d predicted;
     Eigen::Matrix<double, 2, 3> H;
-    if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, &predicted, &H))) continue;
-    if (!in_image(predicted, intrinsics_, kPatchRadius + 1.0)) continue;
-    const Eigen::Vector3d to_camera = view.position_world - p.X_world;
-    const double distance = to_camera.norm();
-    const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
-    if (!(facing > config_.min_facing_cos)) continue;
-    if (occlusion) {
-      const Eigen::Vector3d ray = -to_camera / distance;
-      const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-      if (!depth_buffer_.is_visible((p.X_world - k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius)) {
-        continue;
-      }
+    if (!predicted_in_view(p, view, occlusion, &predicted, &H)) {
+      // Not even seen in the first image after its creation: nothing confirms it (confirm_spawns).
+      if (p.observation_count == 0 && p.creating_view < next_view_index_) drop_unconfirmed(i, kNoCell, pool);
+      continue;
     }
     ++report.predicted_in_view;
 
@@ -366,10 +358,26 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   }
 }
 
+bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion,
+                                      Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H) const {
+  if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, predicted, H))) return false;
+  if (!in_image(*predicted, intrinsics_, kPatchRadius + 1.0)) return false;
+  const Eigen::Vector3d to_camera = view.position_world - p.X_world;
+  const double distance = to_camera.norm();
+  const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
+  if (!(facing > config_.min_facing_cos)) return false;
+  if (!occlusion) return true;
+  // Pulled forward by its own uncertainty, it must not be behind the buffer.
+  const Eigen::Vector3d ray = -to_camera / distance;
+  const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
+  return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
+                                  p.radius);
+}
+
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {
   if (!config_.confirm_spawns || !ok(pool.erase(i))) return;
   ++stats_.unconfirmed_erased;
-  if (cell_primitive_[centre_cell] == i) {
+  if (centre_cell < cell_primitive_.size() && cell_primitive_[centre_cell] == i) {
     cell_primitive_[centre_cell] = kInvalidPrimitive;
     cell_state_[centre_cell] = 0;
   }

@@ -83,9 +83,10 @@ struct FrontEndConfig {
   // the fit's residual holds both frames' noise), and half of each later match's fit covariance is its
   // own, independent part. Needs adaptive_R.
   bool model_template_noise = true;
-  // A new primitive rests on one two-view match. Its first predicted re-observation confirms it; when
-  // that fails (no match, or one the gate refuses) it is erased rather than kept with an estimate nothing
-  // else supports (a wrong epipolar match, a patch across a depth edge). Counted in
+  // A new primitive rests on one two-view match. The first image after its creation must confirm it:
+  // when it is not predicted in view there (a wrong match behind the surface stays hidden by the depth
+  // buffer for good), or its match fails or is gated, it is erased rather than kept with an estimate
+  // nothing else supports (a wrong epipolar match, a patch across a depth edge). Counted in
   // FrontEndStats::unconfirmed_erased.
   bool confirm_spawns = true;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
@@ -168,7 +169,13 @@ class ImageFrontEnd final : public MeasurementSource {
   std::size_t cell_of(const Eigen::Vector2d& uv_px) const;
   void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
-  // Erases new primitive i whose first re-observation failed (FrontEndConfig::confirm_spawns).
+  // Whether p is predicted in view: in front, inside the image with the patch, facing the camera and,
+  // with occlusion, not behind the depth buffer. Its projection and Jacobian go to *predicted and *H.
+  bool predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion, Eigen::Vector2d* predicted,
+                         Eigen::Matrix<double, 2, 3>* H) const;
+  // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
+  // confirm_spawns); centre_cell (kNoCell: none) forgets it.
+  static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);
   void drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
