@@ -18,33 +18,29 @@ float ncc_from_sums(float sum_ti, float sum_i, float sum_ii, float n, float tmpl
 }
 
 void finish_template(NccTemplate* out) {
-  double sum = 0.0;
-  int count = 0;
+  // Masks are 0 or 1 (both make_template overloads set them so): plain sums, no branches.
+  float sum = 0.0f;
+  float count = 0.0f;
   for (int i = 0; i < kPatchPixels; ++i) {
-    if (out->mask[i] > 0.5f) {
-      sum += out->values[i];
-      ++count;
-    }
+    sum += out->mask[i] * out->values[i];
+    count += out->mask[i];
   }
-  out->valid_count = count;
-  if (count == 0) {
+  out->valid_count = static_cast<int>(count);
+  if (out->valid_count == 0) {
+    out->values.fill(0.0f);
     out->norm = 0.0f;
     out->stddev_gray = 0.0f;
     return;
   }
-  const double mean = sum / count;
-  double sum_sq = 0.0;
+  const float mean = sum / count;
+  float sum_sq = 0.0f;
   for (int i = 0; i < kPatchPixels; ++i) {
-    if (out->mask[i] > 0.5f) {
-      const double centred = out->values[i] - mean;
-      out->values[i] = static_cast<float>(centred);
-      sum_sq += centred * centred;
-    } else {
-      out->values[i] = 0.0f;
-    }
+    const float centred = (out->values[i] - mean) * out->mask[i];
+    out->values[i] = centred;
+    sum_sq += centred * centred;
   }
-  out->norm = static_cast<float>(std::sqrt(sum_sq));
-  out->stddev_gray = static_cast<float>(std::sqrt(sum_sq / count));
+  out->norm = std::sqrt(sum_sq);
+  out->stddev_gray = std::sqrt(sum_sq / count);
 }
 
 // ncc_from_sums on four lanes at once.
@@ -136,13 +132,13 @@ bool ncc_box(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x
              std::int32_t h, Span<float> scratch, float* out) {
   if (w < 1 || h < 1 || scratch.size() < ncc_box_scratch_size(w, h)) return false;
   if (tmpl.norm <= 0.0f || tmpl.valid_count < 2) {
-    for (std::int32_t i = 0; i < w * h; ++i) out[i] = -1.0f;
+    for (std::int32_t i = 0; i < h * ncc_box_out_stride(w); ++i) out[i] = -1.0f;
     return true;
   }
   // Layout: the pixels under the box as floats (plane_h rows of plane_stride, zero past the region so
   // the padding lanes stay finite), then per plane row the 7-wide sums of I and of I^2 at each centre
   // column. Every value is an integer below 2^24, so these float sums are exact.
-  const std::int32_t padded_w = (w + 7) / 8 * 8;
+  const std::int32_t padded_w = ncc_box_out_stride(w);
   const std::int32_t plane_stride = ncc_box_plane_stride(w);
   const std::int32_t plane_h = h + kPatchSize - 1;
   float* plane = scratch.data();
@@ -210,12 +206,9 @@ bool ncc_box(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x
         sum_sq_lo -= p_lo * p_lo;
         sum_sq_hi -= p_hi * p_hi;
       }
-      alignas(16) float ncc[8];
-      store4(ncc, ncc_lanes(dot_lo, sum_lo, sum_sq_lo, n, tmpl.norm));
-      store4(ncc + 4, ncc_lanes(dot_hi, sum_hi, sum_sq_hi, n, tmpl.norm));
-      float* dst = out + static_cast<std::size_t>(y) * w + c;
-      const std::int32_t lanes = w - c < 8 ? w - c : 8;
-      for (std::int32_t i = 0; i < lanes; ++i) dst[i] = ncc[i];
+      float* dst = out + static_cast<std::size_t>(y) * padded_w + c;
+      store4(dst, ncc_lanes(dot_lo, sum_lo, sum_sq_lo, n, tmpl.norm));
+      store4(dst + 4, ncc_lanes(dot_hi, sum_hi, sum_sq_hi, n, tmpl.norm));
     }
   }
   return true;

@@ -56,11 +56,15 @@ constexpr std::size_t ncc_box_scratch_size(std::int32_t w, std::int32_t h) {
   return static_cast<std::size_t>(h + kPatchSize - 1) * (static_cast<std::size_t>(ncc_box_plane_stride(w)) + 2 * padded_w);
 }
 
-// NCC at every centre of the box [x0, x0 + w) x [y0, y0 + h), row-major into out (w * h values); the
-// same value as ncc_at at each centre up to float rounding (the window search's dense form: the pixels
-// are converted once, the sums of I and I^2 are box sums, four centres share each template multiply).
-// The caller guarantees every centre's patch lies inside the image. False, out untouched, when w or h
-// is not positive or scratch is smaller than ncc_box_scratch_size(w, h).
+// Row stride of ncc_box's output: whole groups of 8 centres.
+constexpr std::int32_t ncc_box_out_stride(std::int32_t w) { return (w + 7) / 8 * 8; }
+
+// NCC at every centre of the box [x0, x0 + w) x [y0, y0 + h): out[y * ncc_box_out_stride(w) + x] for
+// y < h, x < w (the lanes past w are written and hold nothing meaningful), the same value as ncc_at at
+// each centre up to float rounding. The window search's dense form: the pixels are converted once, the
+// sums of I and I^2 are box sums, eight centres share each template multiply. The caller guarantees
+// every centre's patch lies inside the image. False, out untouched, when w or h is not positive or
+// scratch is smaller than ncc_box_scratch_size(w, h).
 bool ncc_box(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x0, std::int32_t y0, std::int32_t w,
              std::int32_t h, Span<float> scratch, float* out);
 

@@ -179,35 +179,65 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const std::int32_t w = x1 - x0 + 1;
   const std::int32_t h = y1 - y0 + 1;
   if (w < 3 || h < 3) return MatchOutcome::kNoRoom;
-  // NCC of the whole box at once (vectorized; cheaper than evaluating only the needed centres one by one).
-  float* ncc = scratch.data();
   const std::size_t box_size = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
-  if (box_size > scratch.size() ||
-      !ncc_box(image, tmpl, x0, y0, w, h, Span<float>(ncc + box_size, scratch.size() - box_size), ncc)) {
+  const std::size_t ncc_size = static_cast<std::size_t>(h) * static_cast<std::size_t>(ncc_box_out_stride(w));
+  if (box_size + ncc_size > scratch.size()) return MatchOutcome::kNoRoom;
+  // Candidates inside the gate ellipse (the pixel nearest the prediction always counts as inside, so a
+  // tiny ellipse between pixel centres still has one), and the rectangle that holds them.
+  float* inside = scratch.data();
+  const double a = query.S_inv(0, 0);
+  const double b = query.S_inv(0, 1);
+  const double c = query.S_inv(1, 0);
+  const double e = query.S_inv(1, 1);
+  std::int32_t in_x0 = x1;
+  std::int32_t in_x1 = x0;
+  std::int32_t in_y0 = y1;
+  std::int32_t in_y1 = y0;
+  for (std::int32_t y = y0 + 1; y < y1; ++y) {
+    const double dy = y - query.predicted_px.y();
+    for (std::int32_t x = x0 + 1; x < x1; ++x) {
+      const double dx = x - query.predicted_px.x();
+      const bool in = (x == cx && y == cy) || dx * (a * dx + b * dy) + dy * (c * dx + e * dy) <= query.gate_chi2;
+      inside[(y - y0) * w + x - x0] = in ? 1.0f : 0.0f;
+      if (!in) continue;
+      in_x0 = x < in_x0 ? x : in_x0;
+      in_x1 = x > in_x1 ? x : in_x1;
+      in_y0 = y < in_y0 ? y : in_y0;
+      in_y1 = y > in_y1 ? y : in_y1;
+    }
+  }
+  *best_ncc = -2.0f;
+  if (in_x0 > in_x1) return MatchOutcome::kBelowThreshold;
+  // NCC of that rectangle and its one-pixel ring (every candidate's 8-neighbours) at once: vectorized,
+  // cheaper than evaluating the needed centres one by one.
+  const std::int32_t n_x0 = in_x0 - 1;
+  const std::int32_t n_y0 = in_y0 - 1;
+  const std::int32_t n_w = in_x1 - in_x0 + 3;
+  const std::int32_t n_h = in_y1 - in_y0 + 3;
+  const std::int32_t n_stride = ncc_box_out_stride(n_w);
+  float* ncc = inside + box_size;
+  float* const rest = ncc + ncc_size;
+  if (!ncc_box(image, tmpl, n_x0, n_y0, n_w, n_h, Span<float>(rest, scratch.size() - box_size - ncc_size), ncc)) {
     return MatchOutcome::kNoRoom;
   }
-  auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - y0) * w + x - x0]; };
+  auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - n_y0) * n_stride + x - n_x0]; };
+  auto is_inside = [&](std::int32_t x, std::int32_t y) { return inside[(y - y0) * w + x - x0] != 0.0f; };
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
-    const float c = value(x, y);
+    const float centre = value(x, y);
     for (std::int32_t dy = -1; dy <= 1; ++dy) {
       for (std::int32_t dx = -1; dx <= 1; ++dx) {
-        if ((dx != 0 || dy != 0) && value(x + dx, y + dy) > c) return false;
+        if ((dx != 0 || dy != 0) && value(x + dx, y + dy) > centre) return false;
       }
     }
     return true;
   };
-  auto inside = [&](std::int32_t x, std::int32_t y) {
-    const Eigen::Vector2d d(x - query.predicted_px.x(), y - query.predicted_px.y());
-    return (x == cx && y == cy) || d.dot(query.S_inv * d) <= query.gate_chi2;
-  };
-  // Best local maximum inside the gate ellipse (the pixel nearest the prediction always counts as inside,
-  // so a tiny ellipse between pixel centres still has a candidate).
+  // Best local maximum inside the gate ellipse.
   float best = -2.0f;
   std::int32_t bx = 0;
   std::int32_t by = 0;
-  for (std::int32_t y = y0 + 1; y < y1; ++y) {
-    for (std::int32_t x = x0 + 1; x < x1; ++x) {
-      if (!inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
+  for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+    for (std::int32_t x = in_x0; x <= in_x1; ++x) {
+      if (!is_inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
       best = value(x, y);
       bx = x;
       by = y;
@@ -216,10 +246,10 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   *best_ncc = best;
   if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
   // Uniqueness over the other local maxima inside the ellipse: the region the prior allows.
-  for (std::int32_t y = y0 + 1; y < y1; ++y) {
-    for (std::int32_t x = x0 + 1; x < x1; ++x) {
+  for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+    for (std::int32_t x = in_x0; x <= in_x1; ++x) {
       if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
-      if (inside(x, y) && value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) {
+      if (is_inside(x, y) && value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) {
         return MatchOutcome::kAmbiguous;
       }
     }

@@ -51,11 +51,12 @@ struct WindowQuery {
   std::int32_t half_height_px = 2;
 };
 
-// Scratch floats a window search needs for a given half size: the NCC of the box (the window plus a
-// one-pixel ring) and ncc_box's working space.
+// Scratch floats a window search needs for a given half size: the gate flags of the box (the window
+// plus a one-pixel ring), the NCC of the box and ncc_box's working space.
 constexpr std::size_t window_scratch_size(std::int32_t max_half_px) {
   const std::int32_t box = 2 * max_half_px + 3;
-  return static_cast<std::size_t>(box) * box + ncc_box_scratch_size(box, box);
+  return static_cast<std::size_t>(box) * box + static_cast<std::size_t>(box) * ncc_box_out_stride(box) +
+         ncc_box_scratch_size(box, box);
 }
 
 // covariance_px2 (may be null): the match's covariance from refine_subpixel, NaN when
