@@ -1,116 +1,397 @@
-#pragma once
-// The criterion's per-cluster block kernel (see criterion_model.hpp and README.md), included by
-// block_kernel.cpp only. Internal linkage, so a future second build of it (say with -mavx2 in another
-// translation unit) cannot leak into the baseline one through the linker.
+// The criterion's per-view inner loops (block_kernel.hpp), written with GCC/Clang vector extensions:
+// 8-lane float vectors that GCC lowers to one AVX2 register, two SSE2 registers or two NEON registers, so
+// the code is vector code whatever the autovectorizer decides. Included once per build of the kernel, with
+// VANTAGE_KERNEL_NS naming the namespace of that build (block_kernel.cpp: baseline, block_kernel_avx2.cpp:
+// avx2_fma). Everything here has internal linkage or lives in that namespace, and nothing from another
+// header is instantiated, so the builds cannot leak into each other through the linker.
+//
+// Per view: render() computes for each kept cluster, 16 lanes at a time, the camera transform, facing,
+// projection, plane gradients, footprint and visibility threshold, splats the single-pixel footprints
+// (scalar, branch-free: masked lanes write a spare cell) and the larger ones (general splat), and writes
+// one (pixel, threshold) entry per lane. sum_visible() then runs the depth test per cluster and computes
+// the weight w g^h / f (log2/exp2/sqrt) only for clusters with a visible lane: occluded clusters, about
+// half of the kept ones on the bunny, never pay for it.
+#ifndef VANTAGE_KERNEL_NS
+#error "define VANTAGE_KERNEL_NS before including block_kernel_impl.hpp"
+#endif
+
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 
-#include "core/criterion/criterion_model.hpp"
-#include "core/criterion/depth_buffer.hpp"
-#include "core/criterion/fast_math.hpp"
+#include "core/criterion/block_kernel.hpp"
+#include "core/criterion/fast_math.hpp"  // the polynomial coefficients only (constants, no code)
+#include "core/criterion/splat_general.hpp"
 
-namespace vantage {
+namespace vantage::criterion_kernel::VANTAGE_KERNEL_NS {
 namespace {
 
-// The kernel body, one lane per primitive of the cluster at `base`. Divisions, logs and roots run on
-// every lane, unmasked: a lane behind the camera or facing away computes garbage that the masks drop.
-// block_kernel.cpp is compiled with -fno-trapping-math and -fno-math-errno (core/CMakeLists.txt): otherwise
-// GCC will not speculate them and leaves the loop scalar. Comparisons combine with &, not &&, for the same
-// reason, and per-view constants are locals (a conditional load from a struct makes GCC branch).
-// Inputs and the output as restrict parameters: GCC honours restrict on parameters (also after
-// inlining), not on local pointers, and without it gives up on the alias checks.
-inline void block_kernel_lanes(const float* __restrict px, const float* __restrict py, const float* __restrict pz,
-                               const float* __restrict nx, const float* __restrict ny, const float* __restrict nz,
-                               const float* __restrict s00, const float* __restrict s01,
-                               const float* __restrict s02, const float* __restrict s11,
-                               const float* __restrict s12, const float* __restrict s22,
-                               const float* __restrict lwa, const float* __restrict hh, const float* __restrict rr,
-                               const BlockConstants& kc, BlockOutput* __restrict out_ptr) {
-  BlockOutput& out = *out_ptr;
-  const float r00 = kc.r00, r01 = kc.r01, r02 = kc.r02;
-  const float r10 = kc.r10, r11 = kc.r11, r12 = kc.r12;
-  const float r20 = kc.r20, r21 = kc.r21, r22 = kc.r22;
-  const float cam_x = kc.cam_x, cam_y = kc.cam_y, cam_z = kc.cam_z;
-  const float fx = kc.fx, fy = kc.fy, cx = kc.cx, cy = kc.cy;
-  const float inv_fx = kc.inv_fx, inv_fy = kc.inv_fy, f_max = kc.f_max;
-  const float u_max = kc.u_max, v_max = kc.v_max, u_clamp = kc.u_clamp, v_clamp = kc.v_clamp;
-  const std::int32_t width = kc.width;
-  const std::int32_t spare = kc.spare;
-  const float grazing2 = kGrazingCosine * kGrazingCosine;
-  const float tolerance_radii = kc.tolerance_radii;
-  const float log2_fxfy = kc.log2_fxfy;
-  for (std::size_t i = 0; i < kClusterSize; ++i) {
-    const float ux = px[i] - cam_x;
-    const float uy = py[i] - cam_y;
-    const float uz = pz[i] - cam_z;
-    const float xc = r00 * ux + r01 * uy + r02 * uz;
-    const float yc = r10 * ux + r11 * uy + r12 * uz;
-    const float zc = r20 * ux + r21 * uy + r22 * uz;
-    const float facing = -(nx[i] * ux + ny[i] * uy + nz[i] * uz);  // n . (camera - X)
-    const float ncx = r00 * nx[i] + r01 * ny[i] + r02 * nz[i];
-    const float ncy = r10 * nx[i] + r11 * ny[i] + r12 * nz[i];
-    const float dist2 = ux * ux + uy * uy + uz * uz;
-    const bool front = (zc > kNearDepth) & (facing > 0.0f);
-    const float inv_z = 1.0f / zc;
-    const float u = fx * xc * inv_z + cx;
-    const float v = fy * yc * inv_z + cy;
-    // 1/z gradients of the disc's plane n_cam . X = k with k = -facing (see splat_math).
-    const bool grazing = facing * facing < grazing2 * dist2;
-    const float minus_inv_facing = -1.0f / facing;
-    const float inv_k = grazing ? 0.0f : minus_inv_facing;
-    const float du = ncx * inv_k * inv_fx;
-    const float dv = ncy * inv_k * inv_fy;
-    const float radius = rr[i];
-    const float radius_px = radius * f_max * inv_z;
-    const bool in_image = (u >= -0.5f) & (v >= -0.5f) & (u < u_max) & (v < v_max);
-    float uc = u > -1.0f ? u : -1.0f;
-    uc = uc < u_clamp ? uc : u_clamp;
-    float vc = v > -1.0f ? v : -1.0f;
-    vc = vc < v_clamp ? vc : v_clamp;
-    const std::int32_t pi = static_cast<std::int32_t>(uc + 0.5f);
-    const std::int32_t pj = static_cast<std::int32_t>(vc + 0.5f);
-    const std::int32_t pixel = pj * width + pi;
-    const float iz_pixel = inv_z + du * (static_cast<float>(pi) - u) + dv * (static_cast<float>(pj) - v);
-    // splat_math::visibility_threshold, inlined: one division, and the select on its sign happens in
-    // the append loop (<= 0 means the tolerance reaches the camera: always visible).
-    const float threshold = iz_pixel / (1.0f - kRelativeDepthTolerance - tolerance_radii * radius * iz_pixel);
-    // f = |Sigma v|: with Sigma' = Sigma / scale, f' = |Sigma' u| / |u|, u = X - x (never negative in
-    // float, unlike a stored Sigma^2).
-    const float su_x = s00[i] * ux + s01[i] * uy + s02[i] * uz;
-    const float su_y = s01[i] * ux + s11[i] * uy + s12[i] * uz;
-    const float su_z = s02[i] * ux + s12[i] * uy + s22[i] * uz;
-    const float qu = su_x * su_x + su_y * su_y + su_z * su_z;
-    // w C = 2^(log2(w' (pi r^2)^h) + h log2(fx fy facing / z^3)) * |u| / |Sigma' u|.
-    const float log2_g_rest = fast::log2(facing * inv_z * inv_z * inv_z);
-    const float weight = fast::exp2(lwa[i] + hh[i] * (log2_fxfy + log2_g_rest)) * __builtin_sqrtf(dist2 / qu);
-    const bool member = front & in_image;
-    const bool fast_splat = member & (radius_px < 0.5f);
-    out.u[i] = u;
-    out.v[i] = v;
-    out.iz[i] = inv_z;
-    out.du[i] = du;
-    out.dv[i] = dv;
-    out.rpx[i] = radius_px;
-    out.iz_pixel[i] = iz_pixel;
-    out.threshold[i] = threshold;
-    out.contribution[i] = weight;  // raw: masked in the scalar loop (a select here makes GCC branch)
-    out.has_area[i] = radius > 0.0f ? 1 : 0;
-    out.pixel[i] = pixel;
-    out.write_pixel[i] = fast_splat ? pixel : spare;
-    // Larger or off-centre footprints go to the general splat, unless the square misses the image.
-    const bool overlaps = (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < u_max) &
-                          (v - radius_px < v_max);
-    out.general[i] = (front & overlaps & !fast_splat) ? 1 : 0;
-    out.member[i] = member ? 1 : 0;
+#define VANTAGE_KERNEL_INLINE inline __attribute__((always_inline))
+
+typedef float vf __attribute__((vector_size(32)));
+typedef std::int32_t vi __attribute__((vector_size(32)));
+typedef float vf4 __attribute__((vector_size(16)));
+constexpr std::size_t kWidth = 8;
+static_assert(kLanes % kWidth == 0, "a cluster is a whole number of vectors");
+constexpr std::size_t kFlushClusters = 32;  // float partial sums go to the double total this often
+
+VANTAGE_KERNEL_INLINE vf load(const float* p) {
+  vf v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+VANTAGE_KERNEL_INLINE vi load(const std::int32_t* p) {
+  vi v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+VANTAGE_KERNEL_INLINE void store(float* p, vf v) { std::memcpy(p, &v, sizeof v); }
+VANTAGE_KERNEL_INLINE void store(std::int32_t* p, vi v) { std::memcpy(p, &v, sizeof v); }
+VANTAGE_KERNEL_INLINE vf broadcast(float s) { return vf{} + s; }
+VANTAGE_KERNEL_INLINE vi broadcast(std::int32_t s) { return vi{} + s; }
+VANTAGE_KERNEL_INLINE vf to_float(vi x) { return __builtin_convertvector(x, vf); }
+VANTAGE_KERNEL_INLINE vi truncate(vf x) { return __builtin_convertvector(x, vi); }
+VANTAGE_KERNEL_INLINE vf select(vi mask, vf a, vf b) { return mask ? a : b; }
+VANTAGE_KERNEL_INLINE vi select(vi mask, vi a, vi b) { return mask ? a : b; }
+
+VANTAGE_KERNEL_INLINE vf square_root(vf x) {
+#if defined(__AVX__)
+  return __builtin_ia32_sqrtps256(x);
+#elif defined(__SSE__)
+  const vf4 lo = __builtin_ia32_sqrtps(__builtin_shufflevector(x, x, 0, 1, 2, 3));
+  const vf4 hi = __builtin_ia32_sqrtps(__builtin_shufflevector(x, x, 4, 5, 6, 7));
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+#elif defined(__aarch64__)
+  const vf4 lo = __builtin_aarch64_sqrtv4sf(__builtin_shufflevector(x, x, 0, 1, 2, 3));
+  const vf4 hi = __builtin_aarch64_sqrtv4sf(__builtin_shufflevector(x, x, 4, 5, 6, 7));
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+#else
+  vf r;
+  for (std::size_t i = 0; i < kWidth; ++i) r[i] = __builtin_sqrtf(x[i]);
+  return r;
+#endif
+}
+
+// True when any lane of the mask is set.
+VANTAGE_KERNEL_INLINE bool any(vi mask) {
+#if defined(__AVX__)
+  return __builtin_ia32_movmskps256(reinterpret_cast<vf>(mask)) != 0;
+#else
+  vi t = mask | __builtin_shufflevector(mask, mask, 4, 5, 6, 7, 0, 1, 2, 3);
+  t |= __builtin_shufflevector(t, t, 2, 3, 0, 1, 6, 7, 4, 5);
+  t |= __builtin_shufflevector(t, t, 1, 0, 3, 2, 5, 4, 7, 6);
+  return t[0] != 0;
+#endif
+}
+
+VANTAGE_KERNEL_INLINE vf gather(const float* base, vi index) {
+#if defined(__AVX2__)
+  const vf all = reinterpret_cast<vf>(broadcast(std::int32_t{-1}));
+  return __builtin_ia32_gathersiv8sf(vf{}, base, index, all, 4);
+#else
+  return vf{base[index[0]], base[index[1]], base[index[2]], base[index[3]],
+            base[index[4]], base[index[5]], base[index[6]], base[index[7]]};
+#endif
+}
+
+// fast::log2 and fast::exp2 (fast_math.hpp) lane by lane: the same operations in the same order.
+VANTAGE_KERNEL_INLINE vf log2(vf x) {
+  const vi b = reinterpret_cast<vi>(x);
+  vf exponent = to_float(((b >> 23) & 0xFF) - 127);
+  vf m = reinterpret_cast<vf>((b & 0x007FFFFF) | 0x3F800000);  // [1, 2)
+  const vi high = m > 1.41421356f;
+  m = select(high, 0.5f * m, m);
+  exponent = select(high, exponent + 1.0f, exponent);
+  const vf t = m - 1.0f;
+  const vf p = fast::kLog2C0 + t * (fast::kLog2C1 + t * (fast::kLog2C2 + t * fast::kLog2C3));
+  return exponent + t * p;
+}
+
+VANTAGE_KERNEL_INLINE vf exp2(vf y) {
+  y = select(y > -126.0f, y, broadcast(-126.0f));
+  y = select(y < 127.0f, y, broadcast(127.0f));
+  const vf shifted = y + 0.5f;
+  const vi truncated = truncate(shifted);
+  const vi i = truncated + (to_float(truncated) > shifted);  // floor(y + 0.5): a true mask is -1
+  const vf f = y - to_float(i);
+  const vf p = 1.0f + f * (fast::kExp2C1 + f * (fast::kExp2C2 + f * fast::kExp2C3));
+  return p * reinterpret_cast<vf>((i + 127) << 23);
+}
+
+// The per-view constants, broadcast once, as a local of each entry point (kept in registers: no store
+// through the output pointers can alias it).
+struct Broadcast {
+  explicit Broadcast(const ViewConstants& k)
+      : r00(broadcast(k.r00)), r01(broadcast(k.r01)), r02(broadcast(k.r02)),
+        r10(broadcast(k.r10)), r11(broadcast(k.r11)), r12(broadcast(k.r12)),
+        r20(broadcast(k.r20)), r21(broadcast(k.r21)), r22(broadcast(k.r22)),
+        cam_x(broadcast(k.cam_x)), cam_y(broadcast(k.cam_y)), cam_z(broadcast(k.cam_z)),
+        fx(broadcast(k.fx)), fy(broadcast(k.fy)), cx(broadcast(k.cx)), cy(broadcast(k.cy)),
+        inv_fx(broadcast(k.inv_fx)), inv_fy(broadcast(k.inv_fy)), f_max(broadcast(k.f_max)),
+        u_max(broadcast(k.u_max)), v_max(broadcast(k.v_max)), u_clamp(broadcast(k.u_clamp)),
+        v_clamp(broadcast(k.v_clamp)), width_plus_one(broadcast(static_cast<float>(k.width) + 1.0f)),
+        height_plus_one(broadcast(static_cast<float>(k.height) + 1.0f)),
+        tolerance_radii(broadcast(k.tolerance_radii)), one_minus_relative(broadcast(1.0f - k.relative_tolerance)),
+        near_depth(broadcast(k.near_depth)), grazing2(broadcast(k.grazing_cosine2)),
+        log2_fxfy(broadcast(k.log2_fxfy)), width(broadcast(k.width)), last_column(broadcast(k.width - 1)),
+        last_row(broadcast(k.height - 1)), spare(broadcast(k.spare)) {}
+  vf r00, r01, r02, r10, r11, r12, r20, r21, r22;
+  vf cam_x, cam_y, cam_z;
+  vf fx, fy, cx, cy, inv_fx, inv_fy, f_max;
+  vf u_max, v_max, u_clamp, v_clamp, width_plus_one, height_plus_one;
+  vf tolerance_radii, one_minus_relative, near_depth, grazing2, log2_fxfy;
+  vi width, last_column, last_row, spare;
+};
+
+VANTAGE_KERNEL_INLINE vi min(vi a, vi b) { return select(a < b, a, b); }
+VANTAGE_KERNEL_INLINE vi max(vi a, vi b) { return select(a > b, a, b); }
+VANTAGE_KERNEL_INLINE vf clamp(vf x, vf lo, vf hi) {
+  x = select(x < lo, lo, x);  // NaN stays NaN; callers only use lanes with finite x
+  return select(x > hi, hi, x);
+}
+VANTAGE_KERNEL_INLINE vi floor_int(vf x) {
+  const vi t = truncate(x);
+  return t + (to_float(t) > x);  // a true mask is -1
+}
+
+// What the scalar pass of one cluster needs.
+struct ClusterLanes {
+  // Single-pixel footprints with the centre in the image; other lanes aim at the spare cell.
+  alignas(32) std::int32_t write_pixel[kLanes];
+  alignas(32) float write_iz[kLanes];
+  // Footprints of 0.5 to 1 pixel with the centre in the image: the pixel centres within [u - r, u + r] are 1
+  // or 2 per axis, one of them the centre pixel, so the splat is a 2 x 2 block (a pixel repeated when 1),
+  // computed in vector form exactly as splat_general does pixel by pixel.
+  alignas(32) std::int32_t quad_pixel[4][kLanes];  // (i0, j0), (i1, j0), (i0, j1), (i1, j1)
+  alignas(32) float quad_iz[4][kLanes];
+  alignas(32) std::int32_t quad[kLanes];  // 1: a quad splat
+  // Every other footprint that may touch the image (larger, or the centre outside): splat_general.
+  alignas(32) float u[kLanes];
+  alignas(32) float v[kLanes];
+  alignas(32) float iz[kLanes];
+  alignas(32) float du[kLanes];
+  alignas(32) float dv[kLanes];
+  alignas(32) float radius_px[kLanes];
+  alignas(32) std::int32_t general[kLanes];  // 1: a general splat
+};
+
+// Lanes [o, o + 8) of the cluster at slot `base`, entries from `entry`: the projection and footprint of
+// every lane, computed unmasked (lanes behind the camera or facing away compute garbage that the masks
+// drop). Returns the candidate mask (front-facing, centre in the image).
+inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::size_t entry, std::size_t o,
+                                 const Target& target, ClusterLanes& out) {
+  const std::size_t slot = base + o;
+  const vf ux = load(s.x + slot) - b.cam_x;
+  const vf uy = load(s.y + slot) - b.cam_y;
+  const vf uz = load(s.z + slot) - b.cam_z;
+  const vf nx = load(s.nx + slot), ny = load(s.ny + slot), nz = load(s.nz + slot);
+  const vf xc = b.r00 * ux + b.r01 * uy + b.r02 * uz;
+  const vf yc = b.r10 * ux + b.r11 * uy + b.r12 * uz;
+  const vf zc = b.r20 * ux + b.r21 * uy + b.r22 * uz;
+  const vf facing = -(nx * ux + ny * uy + nz * uz);  // n . (camera - X)
+  const vf ncx = b.r00 * nx + b.r01 * ny + b.r02 * nz;
+  const vf ncy = b.r10 * nx + b.r11 * ny + b.r12 * nz;
+  const vf dist2 = ux * ux + uy * uy + uz * uz;
+  const vi front = (zc > b.near_depth) & (facing > 0.0f);
+  const vf inv_z = 1.0f / zc;
+  const vf u = b.fx * xc * inv_z + b.cx;
+  const vf v = b.fy * yc * inv_z + b.cy;
+  // 1/z gradients of the disc's plane n_cam . X = k with k = -facing (see splat_math).
+  const vi grazing = facing * facing < b.grazing2 * dist2;
+  const vf inv_k = select(grazing, vf{}, -1.0f / facing);
+  const vf du = ncx * inv_k * b.inv_fx;
+  const vf dv = ncy * inv_k * b.inv_fy;
+  const vf radius = load(s.radius + slot);
+  const vf radius_px = radius * b.f_max * inv_z;
+  const vi in_image = (u >= -0.5f) & (v >= -0.5f) & (u < b.u_max) & (v < b.v_max);
+  vf uc = select(u > -1.0f, u, broadcast(-1.0f));  // NaN goes to -1
+  uc = select(uc < b.u_clamp, uc, b.u_clamp);
+  vf vc = select(v > -1.0f, v, broadcast(-1.0f));
+  vc = select(vc < b.v_clamp, vc, b.v_clamp);
+  const vi pi = truncate(uc + 0.5f);
+  const vi pj = truncate(vc + 0.5f);
+  const vi pixel = pj * b.width + pi;
+  const vf iz_pixel = inv_z + du * (to_float(pi) - u) + dv * (to_float(pj) - v);
+  // splat_math::visibility_threshold: <= 0 means the tolerance reaches the camera (always visible).
+  const vf threshold = iz_pixel / (b.one_minus_relative - b.tolerance_radii * radius * iz_pixel);
+  const vi member = front & in_image;
+  const vi single = member & (radius_px < 0.5f);
+  const vi quad = member & ~single & (radius_px < 1.0f);
+  // Larger or off-centre footprints go to the general splat, unless the square misses the image.
+  const vi overlaps = (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < b.u_max) &
+                      (v - radius_px < b.v_max);
+  store(target.pixel + entry + o, select(member, pixel, b.spare));
+  store(target.threshold + entry + o,
+        select(member, select(threshold > 0.0f, threshold, broadcast(3.0e38f)), broadcast(-1.0f)));
+  store(out.write_pixel + o, select(single, pixel, b.spare));
+  store(out.write_iz + o, iz_pixel);
+  // splat_general's bounds for the quads: the centre pixel (pi, pj) and the pixel centres in the square.
+  const vi i0 = max(min(-floor_int(-clamp(u - radius_px, broadcast(-2.0f), b.width_plus_one)), pi), vi{});
+  const vi i1 = min(max(floor_int(clamp(u + radius_px, broadcast(-2.0f), b.width_plus_one)), pi), b.last_column);
+  const vi j0 = max(min(-floor_int(-clamp(v - radius_px, broadcast(-2.0f), b.height_plus_one)), pj), vi{});
+  const vi j1 = min(max(floor_int(clamp(v + radius_px, broadcast(-2.0f), b.height_plus_one)), pj), b.last_row);
+  const vf row0 = inv_z + dv * (to_float(j0) - v);
+  const vf row1 = inv_z + dv * (to_float(j1) - v);
+  const vf step0 = du * (to_float(i0) - u);
+  const vf step1 = du * (to_float(i1) - u);
+  store(out.quad_pixel[0] + o, j0 * b.width + i0);
+  store(out.quad_pixel[1] + o, j0 * b.width + i1);
+  store(out.quad_pixel[2] + o, j1 * b.width + i0);
+  store(out.quad_pixel[3] + o, j1 * b.width + i1);
+  store(out.quad_iz[0] + o, row0 + step0);
+  store(out.quad_iz[1] + o, row0 + step1);
+  store(out.quad_iz[2] + o, row1 + step0);
+  store(out.quad_iz[3] + o, row1 + step1);
+  store(out.quad + o, quad & 1);
+  store(out.u + o, u);
+  store(out.v + o, v);
+  store(out.iz + o, inv_z);
+  store(out.du + o, du);
+  store(out.dv + o, dv);
+  store(out.radius_px + o, radius_px);
+  store(out.general + o, (front & overlaps & ~single & ~quad) & 1);
+  return member;
+}
+
+// The scalar pass of one cluster: single-pixel splats (branch-free, masked lanes write the spare cell),
+// then the quads and the general splats of the lanes that need them.
+inline void splat_cluster(const ClusterLanes& in, const ViewConstants& kc, float* __restrict depth) {
+  std::uint32_t quad_lanes[kLanes];
+  std::uint32_t general_lanes[kLanes];
+  std::size_t quad_count = 0;
+  std::size_t general_count = 0;
+  for (std::size_t i = 0; i < kLanes; ++i) {
+    float& cell = depth[in.write_pixel[i]];
+    const float iz = in.write_iz[i];
+    cell = iz > cell ? iz : cell;
+    quad_lanes[quad_count] = static_cast<std::uint32_t>(i);
+    quad_count += static_cast<std::size_t>(in.quad[i]);
+    general_lanes[general_count] = static_cast<std::uint32_t>(i);
+    general_count += static_cast<std::size_t>(in.general[i]);
+  }
+  for (std::size_t q = 0; q < quad_count; ++q) {
+    const std::uint32_t i = quad_lanes[q];
+    for (std::size_t c = 0; c < 4; ++c) {
+      float& cell = depth[in.quad_pixel[c][i]];
+      const float iz = in.quad_iz[c][i];
+      cell = iz > cell ? iz : cell;
+    }
+  }
+  for (std::size_t g = 0; g < general_count; ++g) {
+    const std::uint32_t i = general_lanes[g];
+    splat_kernel::splat_general(depth, kc.width, kc.height, in.u[i], in.v[i], in.iz[i], in.du[i], in.dv[i],
+                                in.radius_px[i]);
   }
 }
 
-inline void block_kernel_body(const CriterionArrays& a, std::size_t base, const BlockConstants& kc,
-                              BlockOutput& out) {
-  block_kernel_lanes(a.x + base, a.y + base, a.z + base, a.nx + base, a.ny + base, a.nz + base, a.s00 + base,
-                     a.s01 + base, a.s02 + base, a.s11 + base, a.s12 + base, a.s22 + base, a.log2_wa + base,
-                     a.h + base, a.radius + base, kc, &out);
+// w' g^h / f' of lanes [o, o + 8) of the cluster at slot `base` (scaled units), for lanes that passed
+// the depth test: |u| / |Sigma' u| * 2^(log2(w' (pi r^2)^h) + h log2(fx fy facing / z^3)), u = X - x.
+inline vf weights(const Slots& s, const Broadcast& b, std::size_t slot) {
+  const vf ux = load(s.x + slot) - b.cam_x;
+  const vf uy = load(s.y + slot) - b.cam_y;
+  const vf uz = load(s.z + slot) - b.cam_z;
+  const vf zc = b.r20 * ux + b.r21 * uy + b.r22 * uz;
+  const vf facing = -(load(s.nx + slot) * ux + load(s.ny + slot) * uy + load(s.nz + slot) * uz);
+  const vf dist2 = ux * ux + uy * uy + uz * uz;
+  const vf inv_z = 1.0f / zc;
+  // f = |Sigma v|: with Sigma' = Sigma / scale, f' = |Sigma' u| / |u|.
+  const vf s01 = load(s.s01 + slot), s02 = load(s.s02 + slot), s12 = load(s.s12 + slot);
+  const vf su_x = load(s.s00 + slot) * ux + s01 * uy + s02 * uz;
+  const vf su_y = s01 * ux + load(s.s11 + slot) * uy + s12 * uz;
+  const vf su_z = s02 * ux + s12 * uy + load(s.s22 + slot) * uz;
+  const vf qu = su_x * su_x + su_y * su_y + su_z * su_z;
+  const vf log2_g_rest = log2(facing * inv_z * inv_z * inv_z);
+  const vf weight = exp2(load(s.log2_wa + slot) + load(s.h + slot) * (b.log2_fxfy + log2_g_rest)) *
+                    square_root(dist2 / qu);
+  // A zero-radius footprint has g = 0: it adds exactly 0 (never 0^0 = 1).
+  return select(load(s.radius + slot) > 0.0f, weight, vf{});
 }
 
 }  // namespace
-}  // namespace vantage
+
+std::size_t cull(const Bounds& bo, const ViewConstants& kc, std::size_t count, std::uint32_t* kept) {
+  const Broadcast b(kc);
+  std::size_t n = 0;
+  alignas(32) std::int32_t keep[kWidth];
+  for (std::size_t c0 = 0; c0 < count; c0 += kWidth) {
+    const vf dx = load(bo.centre_x + c0) - b.cam_x;  // centre - camera
+    const vf dy = load(bo.centre_y + c0) - b.cam_y;
+    const vf dz = load(bo.centre_z + c0) - b.cam_z;
+    const vf r = load(bo.radius + c0);
+    const vf xc = b.r00 * dx + b.r01 * dy + b.r02 * dz;
+    const vf yc = b.r10 * dx + b.r11 * dy + b.r12 * dz;
+    const vf zc = b.r20 * dx + b.r21 * dy + b.r22 * dz;
+    const vi outside = (zc < b.near_depth - r) | (kc.left_x * xc + kc.left_z * zc < -r) |
+                       (kc.right_x * xc + kc.right_z * zc < -r) | (kc.top_y * yc + kc.top_z * zc < -r) |
+                       (kc.bottom_y * yc + kc.bottom_z * zc < -r);
+    // Normal cone (axis a, half-angle alpha) against the directions from the sphere to the camera, which
+    // lie within beta = asin(r / d) of (camera - centre); a cone of 90 degrees or more has cos <= 0.
+    const vf cos_alpha = load(bo.cos_half_angle + c0);
+    const vf sin_alpha = load(bo.sin_half_angle + c0);
+    const vf d = square_root(dx * dx + dy * dy + dz * dz);
+    const vf sin_beta = r / d;  // garbage when d <= r: masked below
+    const vf cos_beta2 = 1.0f - sin_beta * sin_beta;
+    const vf cos_beta = square_root(select(cos_beta2 > 0.0f, cos_beta2, vf{}));
+    const vf cos_sum = cos_alpha * cos_beta - sin_alpha * sin_beta;  // cos(alpha + beta)
+    const vf sin_sum = sin_alpha * cos_beta + cos_alpha * sin_beta;
+    const vf axis_to_camera = -(load(bo.axis_x + c0) * dx + load(bo.axis_y + c0) * dy + load(bo.axis_z + c0) * dz);
+    const vi away = (cos_alpha > 0.0f) & (d > r) & (cos_sum > 0.0f) & (axis_to_camera < -sin_sum * d);
+    store(keep, ~(outside | away));
+    const std::size_t lanes = count - c0 < kWidth ? count - c0 : kWidth;
+    for (std::size_t i = 0; i < lanes; ++i) {
+      kept[n] = static_cast<std::uint32_t>(c0 + i);
+      n += static_cast<std::size_t>(keep[i] & 1);
+    }
+  }
+  return n;
+}
+
+std::size_t render(const Slots& s, const ViewConstants& kc, const std::uint32_t* clusters, std::size_t count,
+                   const Target& target) {
+  const Broadcast b(kc);
+  vi candidates = vi{};
+  ClusterLanes lanes;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t base = static_cast<std::size_t>(clusters[k]) * kLanes;
+    for (std::size_t o = 0; o < kLanes; o += kWidth) candidates -= project(s, b, base, k * kLanes, o, target, lanes);
+    splat_cluster(lanes, kc, target.depth);
+  }
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<std::size_t>(candidates[i]);
+  return total;
+}
+
+double sum_visible(const Slots& s, const ViewConstants& kc, const std::uint32_t* clusters, std::size_t count,
+                   const Target& target) {
+  const Broadcast b(kc);
+  const float* __restrict depth = target.depth;
+  double total = 0.0;
+  vf partial = vf{};
+  std::size_t since_flush = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t entry = k * kLanes;
+    vi visible[kLanes / kWidth];
+    vi any_visible = vi{};
+    for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
+      const std::size_t e = entry + h * kWidth;
+      visible[h] = gather(depth, load(target.pixel + e)) <= load(target.threshold + e);
+      any_visible |= visible[h];
+    }
+    if (!any(any_visible)) continue;  // occluded or empty cluster: no weights
+    const std::size_t base = static_cast<std::size_t>(clusters[k]) * kLanes;
+    for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
+      partial += select(visible[h], weights(s, b, base + h * kWidth), vf{});
+    }
+    if (++since_flush == kFlushClusters) {
+      for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<double>(partial[i]);
+      partial = vf{};
+      since_flush = 0;
+    }
+  }
+  for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<double>(partial[i]);
+  return total;
+}
+
+#undef VANTAGE_KERNEL_INLINE
+
+}  // namespace vantage::criterion_kernel::VANTAGE_KERNEL_NS

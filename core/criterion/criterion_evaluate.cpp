@@ -6,9 +6,13 @@
 
 namespace vantage {
 
+static_assert(criterion_kernel::kLanes == kClusterSize, "the kernels run one cluster per block");
+
 struct CriterionModelView::ViewSetup {
   PinholeIntrinsics intrinsics;  // the camera's, for g in its pixels
   float log2_fxfy = 0.0f;        // log2(fx * fy) of the camera
+  criterion_kernel::Functions kernel{};
+  criterion_kernel::ViewConstants constants{};
 };
 
 namespace {
@@ -31,32 +35,75 @@ Frustum make_frustum(const BufferCamera& cam) {
   return f;
 }
 
-// True when no primitive of the cluster can be front-facing and in the frustum from the camera.
-bool cull_cluster(const ClusterBounds& b, const Eigen::Matrix3f& R_cam_world, const Eigen::Vector3f& camera_world,
-                  const Frustum& frustum) {
-  const Eigen::Vector3f centre(b.centre_x, b.centre_y, b.centre_z);
-  const Eigen::Vector3f centre_cam = R_cam_world * (centre - camera_world);
-  if (centre_cam.z() < kNearDepth - b.radius) return true;
-  for (const Eigen::Vector3f& n : frustum.normal) {
-    if (n.dot(centre_cam) < -b.radius) return true;
-  }
-  // Normal cone (axis a, half-angle alpha) against the directions from the sphere to the camera, which
-  // lie within beta = asin(r / d) of (camera - centre): every primitive faces away when
-  // angle(a, camera - centre) > 90 deg + alpha + beta.
-  if (b.cos_half_angle <= 0.0f) return false;
-  const Eigen::Vector3f to_camera = camera_world - centre;
-  const float d = to_camera.norm();
-  if (!(d > b.radius)) return false;
-  const float sin_beta = b.radius / d;
-  const float cos_beta = std::sqrt(1.0f - sin_beta * sin_beta);
-  const float cos_sum = b.cos_half_angle * cos_beta - b.sin_half_angle * sin_beta;  // cos(alpha + beta)
-  if (cos_sum <= 0.0f) return false;
-  const float sin_sum = b.sin_half_angle * cos_beta + b.cos_half_angle * sin_beta;
-  const Eigen::Vector3f axis(b.axis_x, b.axis_y, b.axis_z);
-  return axis.dot(to_camera) < -sin_sum * d;
+criterion_kernel::Slots kernel_slots(const CriterionArrays& a) {
+  return criterion_kernel::Slots{a.x,   a.y,   a.z,   a.nx,      a.ny, a.nz,     a.s00,   a.s01,
+                                 a.s02, a.s11, a.s12, a.s22, a.log2_wa, a.h, a.radius};
+}
+
+criterion_kernel::Bounds kernel_bounds(const ClusterArrays& a) {
+  return criterion_kernel::Bounds{a.centre_x, a.centre_y, a.centre_z, a.radius,        a.axis_x,
+                                  a.axis_y,   a.axis_z,   a.sin_half_angle, a.cos_half_angle};
+}
+
+criterion_kernel::Functions criterion_kernel_functions(CriterionKernel kernel) {
+  namespace ck = criterion_kernel;
+#if VANTAGE_CRITERION_HAS_AVX2_KERNEL
+  if (kernel == CriterionKernel::kAvx2Fma) return {ck::avx2_fma::cull, ck::avx2_fma::render, ck::avx2_fma::sum_visible};
+#endif
+  (void)kernel;
+  return {ck::baseline::cull, ck::baseline::render, ck::baseline::sum_visible};
 }
 
 }  // namespace
+
+const char* to_string(CriterionKernel kernel) {
+  switch (kernel) {
+    case CriterionKernel::kAuto:
+      return "auto";
+    case CriterionKernel::kBaseline:
+#if defined(__x86_64__)
+      return "baseline (SSE2)";
+#elif defined(__aarch64__)
+      return "baseline (NEON)";
+#else
+      return "baseline";
+#endif
+    case CriterionKernel::kAvx2Fma:
+      return "AVX2+FMA";
+  }
+  return "unknown";
+}
+
+bool criterion_kernel_supported(CriterionKernel kernel) {
+  switch (kernel) {
+    case CriterionKernel::kAuto:
+    case CriterionKernel::kBaseline:
+      return true;
+    case CriterionKernel::kAvx2Fma:
+#if VANTAGE_CRITERION_HAS_AVX2_KERNEL
+      // libgcc's CPU model; it also checks that the OS saves the AVX registers.
+      __builtin_cpu_init();
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#else
+      return false;
+#endif
+  }
+  return false;
+}
+
+CriterionKernel best_criterion_kernel() {
+  return criterion_kernel_supported(CriterionKernel::kAvx2Fma) ? CriterionKernel::kAvx2Fma : CriterionKernel::kBaseline;
+}
+
+Status CriterionScratchView::select_kernel(CriterionKernel kernel) {
+  if (!criterion_kernel_supported(kernel)) return Status::kInvalidArgument;
+  kernel_ = kernel;
+  return Status::kOk;
+}
+
+CriterionKernel CriterionScratchView::kernel() const {
+  return kernel_ == CriterionKernel::kAuto ? best_criterion_kernel() : kernel_;
+}
 
 Status CriterionModelView::prepare(const Viewpoint& view, const PinholeIntrinsics& intrinsics,
                                    CriterionScratchView& scratch, ViewSetup* setup) const {
@@ -65,27 +112,18 @@ Status CriterionModelView::prepare(const Viewpoint& view, const PinholeIntrinsic
   if (!ok(configured)) return configured;
   setup->intrinsics = intrinsics;
   setup->log2_fxfy = static_cast<float>(std::log2(intrinsics.fx_px * intrinsics.fy_px));
+  setup->kernel = criterion_kernel_functions(scratch.kernel());
   return Status::kOk;
 }
 
-void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& scratch) const {
+void CriterionModelView::render(ViewSetup& setup, CriterionScratchView& scratch) const {
   DepthBufferView& depth = scratch.depth();
   const BufferCamera cam = depth.camera();
   const Eigen::Matrix3f R = depth.R_cam_world();
   const Eigen::Vector3f camera = depth.position_world();
   const Frustum frustum = make_frustum(cam);
 
-  // Level 1: clusters.
-  const std::size_t cluster_total = cluster_count();
-  std::size_t kept = 0;
-  for (std::size_t c = 0; c < cluster_total; ++c) {
-    if (!cull_cluster(arrays_.clusters[c], R, camera, frustum)) scratch.clusters_[kept++] = static_cast<std::uint32_t>(c);
-  }
-  scratch.clusters_total_ = cluster_total;
-  scratch.clusters_kept_ = kept;
-
-  // Level 2: primitives of the kept clusters, kClusterSize at a time through a vectorizable block.
-  BlockConstants kc;
+  criterion_kernel::ViewConstants& kc = setup.constants;
   kc.r00 = R(0, 0), kc.r01 = R(0, 1), kc.r02 = R(0, 2);
   kc.r10 = R(1, 0), kc.r11 = R(1, 1), kc.r12 = R(1, 2);
   kc.r20 = R(2, 0), kc.r21 = R(2, 1), kc.r22 = R(2, 2);
@@ -98,38 +136,25 @@ void CriterionModelView::render(const ViewSetup& setup, CriterionScratchView& sc
   kc.u_clamp = static_cast<float>(cam.width_px);
   kc.v_clamp = static_cast<float>(cam.height_px);
   kc.width = cam.width_px;
+  kc.height = cam.height_px;
   kc.spare = depth.spare_index();
   kc.tolerance_radii = depth.tolerance_radii();
+  kc.relative_tolerance = kRelativeDepthTolerance;
+  kc.near_depth = kNearDepth;
+  kc.grazing_cosine2 = kGrazingCosine * kGrazingCosine;
   kc.log2_fxfy = setup.log2_fxfy;
+  kc.left_x = frustum.normal[0].x(), kc.left_z = frustum.normal[0].z();
+  kc.right_x = frustum.normal[1].x(), kc.right_z = frustum.normal[1].z();
+  kc.top_y = frustum.normal[2].y(), kc.top_z = frustum.normal[2].z();
+  kc.bottom_y = frustum.normal[3].y(), kc.bottom_z = frustum.normal[3].z();
 
-  BlockOutput out;
-  std::uint32_t general_lanes[kClusterSize];
-  float* __restrict buffer = depth.inverse_depth_data();
-  std::size_t entries = 0;
-  for (std::size_t k = 0; k < kept; ++k) {
-    const std::size_t base = static_cast<std::size_t>(scratch.clusters_[k]) * kClusterSize;
-    block_kernel(arrays_, base, kc, out);
-    // Scalar, branch-free: the single-pixel splats, the member entries, and the list of lanes that need
-    // the general (multi-pixel or partly outside) splat.
-    std::size_t general_count = 0;
-    for (std::size_t i = 0; i < kClusterSize; ++i) {
-      float& cell = buffer[out.write_pixel[i]];
-      const float iz = out.iz_pixel[i];
-      cell = iz > cell ? iz : cell;
-      scratch.pixel_[entries] = out.pixel[i];
-      scratch.threshold_[entries] = out.threshold[i] > 0.0f ? out.threshold[i] : 3.0e38f;
-      scratch.contribution_[entries] = out.has_area[i] != 0 ? out.contribution[i] : 0.0f;
-      scratch.slot_[entries] = static_cast<std::uint32_t>(base + i);
-      entries += static_cast<std::size_t>(out.member[i]);
-      general_lanes[general_count] = static_cast<std::uint32_t>(i);
-      general_count += static_cast<std::size_t>(out.general[i]);
-    }
-    for (std::size_t g = 0; g < general_count; ++g) {
-      const std::uint32_t i = general_lanes[g];
-      depth.splat_projected(out.u[i], out.v[i], out.iz[i], out.du[i], out.dv[i], out.rpx[i]);
-    }
-  }
-  scratch.entry_count_ = entries;
+  // Level 1: clusters. Level 2: primitives of the kept clusters, a cluster at a time.
+  const std::size_t cluster_total = cluster_count();
+  const std::size_t kept = setup.kernel.cull(kernel_bounds(arrays_.clusters), kc, cluster_total, scratch.clusters_);
+  scratch.clusters_total_ = cluster_total;
+  scratch.clusters_kept_ = kept;
+  const criterion_kernel::Target target{depth.inverse_depth_data(), scratch.pixel_, scratch.threshold_};
+  scratch.candidates_ = setup.kernel.render(kernel_slots(arrays_), kc, scratch.clusters_, kept, target);
 }
 
 Status CriterionModelView::evaluate(const Viewpoint& view, const PinholeIntrinsics& intrinsics,
@@ -138,22 +163,11 @@ Status CriterionModelView::evaluate(const Viewpoint& view, const PinholeIntrinsi
   const Status status = prepare(view, intrinsics, scratch, &setup);
   if (!ok(status)) return status;
   render(setup, scratch);
-  // Level 3: the depth test and the sum; four accumulators break the dependency chain.
-  const float* __restrict buffer = scratch.depth().inverse_depth_data();
-  const std::int32_t* __restrict pixel = scratch.pixel_;
-  const float* __restrict threshold = scratch.threshold_;
-  const float* __restrict contribution = scratch.contribution_;
-  const std::size_t n = scratch.entry_count_;
-  double sum[4] = {0.0, 0.0, 0.0, 0.0};
-  std::size_t e = 0;
-  for (; e + 4 <= n; e += 4) {
-    for (std::size_t l = 0; l < 4; ++l) {
-      sum[l] += buffer[pixel[e + l]] <= threshold[e + l] ? contribution[e + l] : 0.0f;
-    }
-  }
-  for (; e < n; ++e) sum[0] += buffer[pixel[e]] <= threshold[e] ? contribution[e] : 0.0f;
-  const double scale2 = scale_ * scale_;
-  *F_out = (sum[0] + sum[1] + sum[2] + sum[3]) * scale2;
+  // Level 3: the depth test, and the weights of the clusters with a visible lane.
+  const criterion_kernel::Target target{scratch.depth().inverse_depth_data(), scratch.pixel_, scratch.threshold_};
+  const double sum =
+      setup.kernel.sum_visible(kernel_slots(arrays_), setup.constants, scratch.clusters_, scratch.clusters_kept_, target);
+  *F_out = sum * scale_ * scale_;
   return Status::kOk;
 }
 
@@ -167,9 +181,11 @@ Status CriterionModelView::visible_primitives(const Viewpoint& view, const Pinho
   render(setup, scratch);
   const float* buffer = scratch.depth().inverse_depth_data();
   std::size_t count = 0;
-  for (std::size_t e = 0; e < scratch.entry_count_; ++e) {
+  const std::size_t entries = scratch.clusters_kept_ * kClusterSize;
+  for (std::size_t e = 0; e < entries; ++e) {
     if (!(buffer[scratch.pixel_[e]] <= scratch.threshold_[e])) continue;
-    if (count < out.size()) out[count] = arrays_.index[scratch.slot_[e]];
+    const std::size_t slot = static_cast<std::size_t>(scratch.clusters_[e / kClusterSize]) * kClusterSize + e % kClusterSize;
+    if (count < out.size()) out[count] = arrays_.index[slot];
     ++count;
   }
   *count_out = count;
@@ -193,8 +209,9 @@ Status CriterionModelView::primitive_terms(const Viewpoint& view, const PinholeI
   render(setup, scratch);
   const float* buffer = scratch.depth().inverse_depth_data();
   bool visible = false;
-  for (std::size_t e = 0; e < scratch.entry_count_; ++e) {
-    if (scratch.slot_[e] == slot) {
+  for (std::size_t k = 0; k < scratch.clusters_kept_; ++k) {
+    if (scratch.clusters_[k] == slot / kClusterSize) {
+      const std::size_t e = k * kClusterSize + slot % kClusterSize;
       visible = buffer[scratch.pixel_[e]] <= scratch.threshold_[e];
       break;
     }

@@ -168,14 +168,11 @@ Status CriterionModelView::refresh(const PrimitivePoolView& pool) {
       const float d = (Eigen::Vector3f(arrays_.x[s], arrays_.y[s], arrays_.z[s]) - centre).norm() + arrays_.radius[s];
       radius = std::max(radius, d);
     }
-    ClusterBounds& b = arrays_.clusters[c];
+    ClusterBounds b;
     b.centre_x = centre.x();
     b.centre_y = centre.y();
     b.centre_z = centre.z();
     b.radius = radius * 1.0001f + 1e-6f;  // float rounding of the distances above
-    b.axis_x = b.axis_y = b.axis_z = 0.0f;
-    b.sin_half_angle = 1.0f;
-    b.cos_half_angle = 0.0f;
     const float mean_length = normal_sum.norm();
     if (mean_length > 1e-3f) {
       const Eigen::Vector3f axis = normal_sum / mean_length;
@@ -192,6 +189,16 @@ Status CriterionModelView::refresh(const PrimitivePoolView& pool) {
         b.sin_half_angle = std::sqrt(std::max(0.0f, 1.0f - min_cos * min_cos));
       }
     }
+    const ClusterArrays& a = arrays_.clusters;
+    a.centre_x[c] = b.centre_x;
+    a.centre_y[c] = b.centre_y;
+    a.centre_z[c] = b.centre_z;
+    a.radius[c] = b.radius;
+    a.axis_x[c] = b.axis_x;
+    a.axis_y[c] = b.axis_y;
+    a.axis_z[c] = b.axis_z;
+    a.sin_half_angle[c] = b.sin_half_angle;
+    a.cos_half_angle[c] = b.cos_half_angle;
   }
 
   count_ = n;
@@ -199,6 +206,21 @@ Status CriterionModelView::refresh(const PrimitivePoolView& pool) {
   pool_revision_ = pool.revision();
   refreshed_ = true;
   return Status::kOk;
+}
+
+ClusterBounds CriterionModelView::cluster(std::size_t c) const {
+  const ClusterArrays& a = arrays_.clusters;
+  ClusterBounds b;
+  b.centre_x = a.centre_x[c];
+  b.centre_y = a.centre_y[c];
+  b.centre_z = a.centre_z[c];
+  b.radius = a.radius[c];
+  b.axis_x = a.axis_x[c];
+  b.axis_y = a.axis_y[c];
+  b.axis_z = a.axis_z[c];
+  b.sin_half_angle = a.sin_half_angle[c];
+  b.cos_half_angle = a.cos_half_angle[c];
+  return b;
 }
 
 }  // namespace vantage

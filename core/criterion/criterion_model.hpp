@@ -67,8 +67,19 @@ struct ClusterBounds {
   float cos_half_angle = 0.0f;
 };
 
+// Which build of the view loops runs (block_kernel.hpp): the baseline ISA of the target (SSE2 on x86-64,
+// NEON on aarch64) or, on x86-64 CPUs with AVX2 and FMA, a build for those. kAuto: the fastest the CPU
+// supports. The builds agree on F to float rounding (test).
+enum class CriterionKernel : std::uint8_t { kAuto, kBaseline, kAvx2Fma };
+const char* to_string(CriterionKernel kernel);
+// Whether this binary and CPU can run `kernel` (kAuto and kBaseline always).
+bool criterion_kernel_supported(CriterionKernel kernel);
+// The kernel kAuto runs here.
+CriterionKernel best_criterion_kernel();
+
 // Per-thread working memory of a view evaluation: the depth buffer, the surviving clusters, and one
-// entry per front-facing in-image primitive. Capacity-free view; CriterionScratch<Capacity, W, H> owns.
+// entry (pixel, visibility threshold) per lane of every surviving cluster. Capacity-free view;
+// CriterionScratch<Capacity, W, H> owns.
 class CriterionScratchView {
  public:
   CriterionScratchView(const CriterionScratchView&) = delete;
@@ -80,27 +91,32 @@ class CriterionScratchView {
   // Statistics of the last evaluation (culling effectiveness).
   std::size_t clusters_total() const { return clusters_total_; }
   std::size_t clusters_kept() const { return clusters_kept_; }
-  std::size_t candidates() const { return entry_count_; }
+  // Primitives of the kept clusters that are front-facing with their centre in the image.
+  std::size_t candidates() const { return candidates_; }
+
+  // The kernel this scratch's evaluations run (default kAuto). kInvalidArgument, nothing changed, when
+  // this CPU or build cannot run it (criterion_kernel_supported).
+  Status select_kernel(CriterionKernel kernel);
+  // The kernel actually run: the selected one, kAuto resolved to best_criterion_kernel().
+  CriterionKernel kernel() const;
 
  protected:
   CriterionScratchView(DepthBufferView& depth, std::uint32_t* clusters, std::int32_t* pixel, float* threshold,
-                       float* contribution, std::uint32_t* slot, std::size_t capacity)
-      : depth_(depth), clusters_(clusters), pixel_(pixel), threshold_(threshold), contribution_(contribution),
-        slot_(slot), capacity_(capacity) {}
+                       std::size_t capacity)
+      : depth_(depth), clusters_(clusters), pixel_(pixel), threshold_(threshold), capacity_(capacity) {}
   ~CriterionScratchView() = default;
 
  private:
   friend class CriterionModelView;
   DepthBufferView& depth_;
   std::uint32_t* clusters_;
-  std::int32_t* pixel_;
-  float* threshold_;
-  float* contribution_;
-  std::uint32_t* slot_;
-  std::size_t capacity_;  // primitives (a multiple of kClusterSize)
+  std::int32_t* pixel_;     // entry k * kClusterSize + i: lane i of clusters_[k]
+  float* threshold_;        // visible when depth[pixel] <= threshold (-1: cannot be visible)
+  std::size_t capacity_;    // primitives (a multiple of kClusterSize)
   std::size_t clusters_total_ = 0;
   std::size_t clusters_kept_ = 0;
-  std::size_t entry_count_ = 0;
+  std::size_t candidates_ = 0;
+  CriterionKernel kernel_ = CriterionKernel::kAuto;
 };
 
 template <std::size_t Capacity, std::int32_t W = 160, std::int32_t H = 120>
@@ -109,16 +125,28 @@ class CriterionScratch : public CriterionScratchView {
   static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
   static_assert(Capacity > 0, "scratch needs a positive capacity");
   CriterionScratch()
-      : CriterionScratchView(depth_buffer_, clusters_.data(), pixel_.data(), threshold_.data(),
-                             contribution_.data(), slot_.data(), kSlots) {}
+      : CriterionScratchView(depth_buffer_, clusters_.data(), pixel_.data(), threshold_.data(), kSlots) {}
 
  private:
   DepthBuffer<W, H> depth_buffer_;
   std::array<std::uint32_t, kSlots / kClusterSize> clusters_{};
   std::array<std::int32_t, kSlots> pixel_{};
   std::array<float, kSlots> threshold_{};
-  std::array<float, kSlots> contribution_{};
-  std::array<std::uint32_t, kSlots> slot_{};
+};
+
+// Structure-of-arrays storage of the cluster bounds (ClusterBounds field by field), readable up to a
+// multiple of kClusterVector clusters (the culling loop reads whole vectors).
+inline constexpr std::size_t kClusterVector = 8;
+struct ClusterArrays {
+  float* centre_x;
+  float* centre_y;
+  float* centre_z;
+  float* radius;
+  float* axis_x;
+  float* axis_y;
+  float* axis_z;
+  float* sin_half_angle;
+  float* cos_half_angle;
 };
 
 // Structure-of-arrays storage of the per-primitive terms, one entry per slot (slots in cluster order).
@@ -140,7 +168,7 @@ struct CriterionArrays {
   float* radius;
   PrimitiveIndex* index;  // pool index of the slot
   std::uint64_t* sort_keys;
-  ClusterBounds* clusters;
+  ClusterArrays clusters;
 };
 
 class CriterionModelView {
@@ -186,7 +214,7 @@ class CriterionModelView {
   const float* slot_z() const { return arrays_.z; }
   const float* slot_radius() const { return arrays_.radius; }
   const PrimitiveIndex* slot_index() const { return arrays_.index; }
-  const ClusterBounds& cluster(std::size_t c) const { return arrays_.clusters[c]; }
+  ClusterBounds cluster(std::size_t c) const;
 
  protected:
   CriterionModelView(const CriterionArrays& arrays, std::size_t capacity) : arrays_(arrays), capacity_(capacity) {}
@@ -196,8 +224,8 @@ class CriterionModelView {
   struct ViewSetup;
   Status prepare(const Viewpoint& view, const PinholeIntrinsics& intrinsics, CriterionScratchView& scratch,
                  ViewSetup* setup) const;
-  // Culls, splats and fills the scratch entries; returns nothing (prepare validated everything).
-  void render(const ViewSetup& setup, CriterionScratchView& scratch) const;
+  // Culls, splats and fills the scratch entries and setup's view constants (prepare validated everything).
+  void render(ViewSetup& setup, CriterionScratchView& scratch) const;
 
   CriterionArrays arrays_;
   std::size_t capacity_;  // slots, a multiple of kClusterSize
@@ -214,20 +242,24 @@ class CriterionModel : public CriterionModelView {
  public:
   static_assert(Capacity > 0, "criterion model needs a positive capacity");
   static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
+  static constexpr std::size_t kClusterSlots =
+      (kSlots / kClusterSize + kClusterVector - 1) / kClusterVector * kClusterVector;
   CriterionModel() : CriterionModelView(make_arrays(), kSlots) {}
 
  private:
   CriterionArrays make_arrays() {
-    return CriterionArrays{x_.data(),   y_.data(),   z_.data(),   nx_.data(),      ny_.data(), nz_.data(),
-                           s00_.data(), s01_.data(), s02_.data(), s11_.data(),     s12_.data(), s22_.data(),
-                           lwa_.data(), h_.data(),   r_.data(),   index_.data(),   keys_.data(), clusters_.data()};
+    const ClusterArrays clusters{cx_.data(), cy_.data(), cz_.data(), cr_.data(),  ax_.data(),
+                                 ay_.data(), az_.data(), sin_.data(), cos_.data()};
+    return CriterionArrays{x_.data(),   y_.data(),   z_.data(),   nx_.data(),    ny_.data(),   nz_.data(),
+                           s00_.data(), s01_.data(), s02_.data(), s11_.data(),   s12_.data(),  s22_.data(),
+                           lwa_.data(), h_.data(),   r_.data(),   index_.data(), keys_.data(), clusters};
   }
   std::array<float, kSlots> x_{}, y_{}, z_{}, nx_{}, ny_{}, nz_{};
   std::array<float, kSlots> s00_{}, s01_{}, s02_{}, s11_{}, s12_{}, s22_{};
   std::array<float, kSlots> lwa_{}, h_{}, r_{};
   std::array<PrimitiveIndex, kSlots> index_{};
   std::array<std::uint64_t, kSlots> keys_{};
-  std::array<ClusterBounds, kSlots / kClusterSize> clusters_{};
+  std::array<float, kClusterSlots> cx_{}, cy_{}, cz_{}, cr_{}, ax_{}, ay_{}, az_{}, sin_{}, cos_{};
 };
 
 }  // namespace vantage

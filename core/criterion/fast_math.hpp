@@ -16,6 +16,16 @@ namespace vantage::fast {
 #define VANTAGE_FAST_INLINE inline
 #endif
 
+// The polynomials' coefficients, shared with the vector kernels (block_kernel_impl.hpp) so that every
+// build computes the same values.
+inline constexpr float kLog2C0 = 1.44164738f;
+inline constexpr float kLog2C1 = -0.724952837f;
+inline constexpr float kLog2C2 = 0.518620416f;
+inline constexpr float kLog2C3 = -0.330077216f;
+inline constexpr float kExp2C1 = 0.693121034f;
+inline constexpr float kExp2C2 = 0.242237317f;
+inline constexpr float kExp2C3 = 0.0559220356f;
+
 VANTAGE_FAST_INLINE std::uint32_t bits_of(float x) {
   std::uint32_t b;
   std::memcpy(&b, &x, sizeof b);
@@ -39,7 +49,7 @@ VANTAGE_FAST_INLINE float log2(float x) {
   m = high ? 0.5f * m : m;
   exponent = high ? exponent + 1.0f : exponent;
   const float t = m - 1.0f;
-  const float p = 1.44164738f + t * (-0.724952837f + t * (0.518620416f + t * -0.330077216f));
+  const float p = kLog2C0 + t * (kLog2C1 + t * (kLog2C2 + t * kLog2C3));
   return exponent + t * p;
 }
 
@@ -52,7 +62,7 @@ VANTAGE_FAST_INLINE float exp2(float y) {
   const std::int32_t truncated = static_cast<std::int32_t>(shifted);
   const std::int32_t i = truncated - (static_cast<float>(truncated) > shifted ? 1 : 0);  // floor(y + 0.5)
   const float f = y - static_cast<float>(i);
-  const float p = 1.0f + f * (0.693121034f + f * (0.242237317f + f * 0.0559220356f));
+  const float p = 1.0f + f * (kExp2C1 + f * (kExp2C2 + f * kExp2C3));
   return p * float_of(static_cast<std::uint32_t>(i + 127) << 23);
 }
 
