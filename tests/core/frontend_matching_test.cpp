@@ -137,6 +137,15 @@ std::vector<std::uint8_t> noisy_image(std::int32_t w, std::int32_t h, double dx,
   return pixels;
 }
 
+// The template of the patch centred on (x, y); false when it is too flat to match (the front end's
+// default min_texture_stddev_gray).
+bool textured_template(const GrayImageView& image, std::int32_t x, std::int32_t y, NccTemplate* tmpl) {
+  std::array<std::uint8_t, kPatchPixels> patch{};
+  extract_patch(image, x, y, &patch);
+  make_template(patch, tmpl);
+  return tmpl->stddev_gray >= 6.0f;
+}
+
 // A template with its corners masked, as a warped reference patch has.
 NccTemplate corner_masked_template(const std::array<std::uint8_t, kPatchPixels>& patch) {
   std::array<float, kPatchPixels> gray{};
@@ -304,11 +313,8 @@ TEST_CASE("the subpixel fit's covariance follows the empirical error spread unde
       const GrayImageView moved_view{moved.data(), w, h, w};
       for (std::int32_t y = 12; y < h - 12; y += 9) {
         for (std::int32_t x = 12; x < w - 12; x += 9) {
-          std::array<std::uint8_t, kPatchPixels> patch{};
-          extract_patch(ref_view, x, y, &patch);
           NccTemplate tmpl;
-          make_template(patch, &tmpl);
-          if (tmpl.stddev_gray < 6.0f) continue;
+          if (!textured_template(ref_view, x, y, &tmpl)) continue;
           ++tried;
           WindowQuery query;
           query.predicted_px = Eigen::Vector2d(x, y) + shift;
@@ -385,11 +391,8 @@ TEST_CASE("an epipolar search within the depth range finds the true corresponden
   double sum_sq = 0.0;
   for (std::int32_t y = 20; y < 100; y += 10) {
     for (std::int32_t x = 20; x < 140; x += 10) {
-      std::array<std::uint8_t, kPatchPixels> patch{};
-      extract_patch(image_a, x, y, &patch);
       NccTemplate tmpl;
-      make_template(patch, &tmpl);
-      if (tmpl.stddev_gray < 6.0f) continue;
+      if (!textured_template(image_a, x, y, &tmpl)) continue;
       ++tried;
       EpipolarQuery query;
       query.uv_first_px = Eigen::Vector2d(x, y);
