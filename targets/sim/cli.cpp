@@ -64,7 +64,11 @@ int run_cli(int argc, const char* const* argv) {
   app.add_option("--eta-relative", options.eta_relative,
                  "also replan when U falls below this fraction of U right after PredictModel (0: off)")
       ->check(CLI::Range(0.0, 0.999));
-  app.add_option("--epsilon", options.split_epsilon_cells, "SplitPath band half-width and halting distance, cells")
+  app.add_option("--image-spacing", options.image_spacing,
+                 "sampling rate along a path: about one image per this many units (default 4)")
+      ->check(CLI::Range(0.01, 1000.0));
+  app.add_option("--epsilon", options.split_epsilon_cells,
+                 "SplitPath band half-width and halting distance, cells (overrides --image-spacing)")
       ->check(CLI::Range(0.5, 1000.0));
   app.add_flag("--capture-on-segments", options.capture_on_segments,
                "also sense at the intermediate cells of the PathQry segments between waypoints");

@@ -1,5 +1,6 @@
 #include "targets/sim/mission.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -121,6 +122,12 @@ const char* to_string(MeasurementKind kind) { return kind == MeasurementKind::kI
 
 const PrimitivePoolView& mission_pool() { return g_pool; }
 
+double split_epsilon_for(const MissionOptions& options, double cell_size) {
+  if (options.split_epsilon_cells > 0.0) return options.split_epsilon_cells;
+  // With epsilon e the recursion halts at d <= 2e, so waypoints lie e..2e cells apart (0.75: 8-neighbours).
+  return std::max(0.75, 0.75 * options.image_spacing / cell_size);
+}
+
 SimSetup build_setup(const sim::SceneConfig& scene, std::uint64_t seed, std::size_t ground_truth_samples) {
   SimSetup setup;
   setup.scene = scene;
@@ -216,7 +223,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
 
   SensingConfig config;
   config.policy = options.planner;
-  config.split.epsilon_cells = options.split_epsilon_cells;
+  config.split.epsilon_cells = split_epsilon_for(options, geo.cell_size_m);
+  summary.split_epsilon_cells = config.split.epsilon_cells;
   config.rho_sigma = options.sigma_target;
   config.eta_utility = options.eta_utility;
   config.eta_relative = options.eta_relative;

@@ -25,7 +25,11 @@ struct MissionOptions {
   double sigma_target = 0.008;         // PrecisionLevel goal rho, units
   double eta_utility = 0.0;
   double eta_relative = 0.0;           // replan when U < eta_relative * U after PredictModel
-  double split_epsilon_cells = 0.75;
+  // Sampling rate along a path: about one image per image_spacing units (SplitPath's epsilon is
+  // 0.75 cells per cell of spacing, at least 0.75 = one image per cell displacement). split_epsilon_cells
+  // > 0 sets epsilon directly instead. See README.md "Sampling rate".
+  double image_spacing = 4.0;
+  double split_epsilon_cells = 0.0;
   bool capture_on_segments = false;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
@@ -39,6 +43,9 @@ struct SimSetup {
   std::unique_ptr<sim::SimWorld> world;
   std::unique_ptr<sim::GroundTruth> ground_truth;
 };
+
+// SplitPath's epsilon (cells) for the options and the grid's cell size.
+double split_epsilon_for(const MissionOptions& options, double cell_size);
 
 // Throws sim::SimError for a bad scene or mesh.
 SimSetup build_setup(const sim::SceneConfig& scene, std::uint64_t seed, std::size_t ground_truth_samples = 50000);

@@ -62,6 +62,7 @@ struct MissionSummary {
   std::uint32_t unreachable_nbv = 0;
   std::uint32_t split_fallbacks = 0;
   std::uint32_t stagnations = 0;
+  double split_epsilon_cells = 0.0;       // SplitPath's epsilon used (from the image spacing)
   double coverage_target = 0.99;
   double sigma_target = 0.008;
   std::uint32_t budget = 0;

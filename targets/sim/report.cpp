@@ -245,6 +245,7 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"unreachable_nbv\": " << s.unreachable_nbv << ",\n"
       << "  \"split_fallbacks\": " << s.split_fallbacks << ",\n"
       << "  \"stagnations\": " << s.stagnations << ",\n"
+      << "  \"split_epsilon_cells\": " << s.split_epsilon_cells << ",\n"
       << "  \"coverage_target\": " << s.coverage_target << ",\n"
       << "  \"sigma_target\": " << s.sigma_target << ",\n"
       << "  \"budget\": " << s.budget << ",\n"

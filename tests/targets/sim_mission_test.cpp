@@ -9,6 +9,7 @@
 #include <catch2/catch.hpp>
 
 #include "targets/sim/cli.hpp"
+#include "targets/sim/mission.hpp"
 
 namespace fs = std::filesystem;
 
@@ -49,6 +50,7 @@ TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the 
   CHECK(summary.find("\"reached_goal\": true") != std::string::npos);
   CHECK(summary.find("\"planner\": \"nbv\"") != std::string::npos);
   CHECK(summary.find("\"model_coverage\": ") != std::string::npos);
+  CHECK(summary.find("\"split_epsilon_cells\": ") != std::string::npos);
   for (const char* file : {"grid.png", "performance.png", "uncertainty.png", "model.ply", "performance.dat"}) {
     INFO(file);
     CHECK(fs::file_size(out / file) > 100u);
@@ -81,4 +83,15 @@ TEST_CASE("vantage-sim: a report folder that cannot be written is an error befor
 TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected") {
   CHECK(run({"--planner", "greedy", "--quiet"}) == 1);
   CHECK(run({"--scene", "/nonexistent/scene.toml", "--quiet"}) == 1);
+}
+
+TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing in units") {
+  using vantage::simtarget::MissionOptions;
+  using vantage::simtarget::split_epsilon_for;
+  MissionOptions o;  // 4 units between images by default
+  CHECK(split_epsilon_for(o, 2.0) == Approx(1.5));   // the paper's 2-unit grid: about every second cell
+  CHECK(split_epsilon_for(o, 4.0) == Approx(0.75));  // 4-unit cells: every cell displacement
+  CHECK(split_epsilon_for(o, 10.0) == Approx(0.75)); // at most one image per cell displacement
+  o.split_epsilon_cells = 2.0;                        // --epsilon overrides
+  CHECK(split_epsilon_for(o, 2.0) == Approx(2.0));
 }
