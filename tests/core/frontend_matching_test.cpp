@@ -251,6 +251,15 @@ TEST_CASE("the box NCC equals the single-centre NCC at every centre, masked temp
   }
   CHECK_FALSE(ncc_box(image, full, 10, 10, 8, 8, Span<float>(scratch.data(), ncc_box_scratch_size(8, 8) - 1),
                       out.data()));
+  // A flat template correlates at -1 everywhere, as with ncc_at.
+  std::array<std::uint8_t, kPatchPixels> constant{};
+  constant.fill(90);
+  NccTemplate flat;
+  make_template(constant, &flat);
+  REQUIRE(ncc_box(image, flat, 10, 10, 3, 2, Span<float>(scratch.data(), scratch.size()), out.data()));
+  for (std::int32_t y = 0; y < 2; ++y) {
+    for (std::int32_t x = 0; x < 3; ++x) CHECK(out[y * ncc_box_out_stride(3) + x] == -1.0f);
+  }
 }
 
 TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit, position and covariance") {
