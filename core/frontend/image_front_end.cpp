@@ -334,8 +334,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     ++report.matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
+    // Only a primitive whose patch noise was recorded at its creation splits the fit covariance.
     const bool template_noise = config_.model_template_noise && config_.adaptive_R && i < kFrontEndMaxPrimitives &&
-                                fit_covariance.allFinite();
+                                fit_covariance.allFinite() && template_noise_[i].covariance_px2.trace() > 0.0f;
     if (template_noise) {
       common.covariance_px2 = template_noise_[i].covariance_px2.cast<double>();
       common.cross_covariance = template_noise_[i].cross_covariance.cast<double>();
