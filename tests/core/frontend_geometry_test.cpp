@@ -179,12 +179,10 @@ TEST_CASE("a tilted normal moves the match as the warp covariance predicts") {
   plane.feature_size = 1.0;
   const Viewpoint reference = vantage::test::looking_at_origin({30.0, 0.0, 0.0});
   const Viewpoint target = vantage::test::looking_at_origin({30.0 * std::cos(0.6), 30.0 * std::sin(0.6), 3.0});
-  std::vector<std::uint8_t> reference_pixels;
-  std::vector<std::uint8_t> target_pixels;
-  vantage::test::render_plane(plane, reference, k, &reference_pixels);
-  vantage::test::render_plane(plane, target, k, &target_pixels);
-  const GrayImageView reference_image = vantage::test::view_of(reference_pixels, k);
-  const GrayImageView target_image = vantage::test::view_of(target_pixels, k);
+  std::vector<std::uint8_t> pixels[2];  // reference, target
+  for (int j = 0; j < 2; ++j) vantage::test::render_plane(plane, j == 0 ? reference : target, k, &pixels[j]);
+  const GrayImageView reference_image = vantage::test::view_of(pixels[0], k);
+  const GrayImageView target_image = vantage::test::view_of(pixels[1], k);
   const Eigen::Vector3f n = Eigen::Vector3f::UnitX();
   const double tilt = 0.05;  // rad
   const Eigen::Vector3f tilted[2] = {(n + static_cast<float>(tilt) * Eigen::Vector3f::UnitY()).normalized(),
