@@ -33,7 +33,7 @@ typedef std::int32_t vi __attribute__((vector_size(32)));
 typedef float vf4 __attribute__((vector_size(16)));
 constexpr std::size_t kWidth = 8;
 static_assert(kLanes % kWidth == 0, "a cluster is a whole number of vectors");
-constexpr std::size_t kFlushClusters = 32;  // float partial sums go to the double total this often
+constexpr std::size_t kBlockClusters = 128;  // sum_visible's block; its float partial sums go to double after each
 
 VANTAGE_KERNEL_INLINE vf load(const float* p) {
   vf v;
@@ -72,26 +72,27 @@ VANTAGE_KERNEL_INLINE vf square_root(vf x) {
 #endif
 }
 
-// True when any lane of the mask is set.
-VANTAGE_KERNEL_INLINE bool any(vi mask) {
+// The mask's lanes as bits (lane i -> bit i).
+VANTAGE_KERNEL_INLINE std::uint32_t bits(vi mask) {
 #if defined(__AVX__)
-  return __builtin_ia32_movmskps256(reinterpret_cast<vf>(mask)) != 0;
+  return static_cast<std::uint32_t>(__builtin_ia32_movmskps256(reinterpret_cast<vf>(mask)));
+#elif defined(__SSE__)
+  const std::uint32_t lo = static_cast<std::uint32_t>(
+      __builtin_ia32_movmskps(reinterpret_cast<vf4>(__builtin_shufflevector(mask, mask, 0, 1, 2, 3))));
+  const std::uint32_t hi = static_cast<std::uint32_t>(
+      __builtin_ia32_movmskps(reinterpret_cast<vf4>(__builtin_shufflevector(mask, mask, 4, 5, 6, 7))));
+  return lo | hi << 4;
 #else
-  vi t = mask | __builtin_shufflevector(mask, mask, 4, 5, 6, 7, 0, 1, 2, 3);
-  t |= __builtin_shufflevector(t, t, 2, 3, 0, 1, 6, 7, 4, 5);
-  t |= __builtin_shufflevector(t, t, 1, 0, 3, 2, 5, 4, 7, 6);
-  return t[0] != 0;
+  const vi weighted = mask & vi{1, 2, 4, 8, 16, 32, 64, 128};
+  std::uint32_t r = 0;
+  for (std::size_t i = 0; i < kWidth; ++i) r |= static_cast<std::uint32_t>(weighted[i]);
+  return r;
 #endif
 }
 
 VANTAGE_KERNEL_INLINE vf gather(const float* base, vi index) {
-#if defined(__AVX2__)
-  const vf all = reinterpret_cast<vf>(broadcast(std::int32_t{-1}));
-  return __builtin_ia32_gathersiv8sf(vf{}, base, index, all, 4);
-#else
   return vf{base[index[0]], base[index[1]], base[index[2]], base[index[3]],
             base[index[4]], base[index[5]], base[index[6]], base[index[7]]};
-#endif
 }
 
 // fast::log2 and fast::exp2 (fast_math.hpp) lane by lane: the same operations in the same order.
@@ -130,7 +131,7 @@ struct Broadcast {
         inv_fx(broadcast(k.inv_fx)), inv_fy(broadcast(k.inv_fy)), f_max(broadcast(k.f_max)),
         u_max(broadcast(k.u_max)), v_max(broadcast(k.v_max)), u_clamp(broadcast(k.u_clamp)),
         v_clamp(broadcast(k.v_clamp)), width_plus_one(broadcast(static_cast<float>(k.width) + 1.0f)),
-        height_plus_one(broadcast(static_cast<float>(k.height) + 1.0f)),
+        height_plus_one(broadcast(static_cast<float>(k.height) + 1.0f)), minus_two(broadcast(-2.0f)),
         tolerance_radii(broadcast(k.tolerance_radii)), one_minus_relative(broadcast(1.0f - k.relative_tolerance)),
         near_depth(broadcast(k.near_depth)), grazing2(broadcast(k.grazing_cosine2)),
         log2_fxfy(broadcast(k.log2_fxfy)), width(broadcast(k.width)), last_column(broadcast(k.width - 1)),
@@ -138,16 +139,17 @@ struct Broadcast {
   vf r00, r01, r02, r10, r11, r12, r20, r21, r22;
   vf cam_x, cam_y, cam_z;
   vf fx, fy, cx, cy, inv_fx, inv_fy, f_max;
-  vf u_max, v_max, u_clamp, v_clamp, width_plus_one, height_plus_one;
+  vf u_max, v_max, u_clamp, v_clamp, width_plus_one, height_plus_one, minus_two;
   vf tolerance_radii, one_minus_relative, near_depth, grazing2, log2_fxfy;
   vi width, last_column, last_row, spare;
 };
 
 VANTAGE_KERNEL_INLINE vi min(vi a, vi b) { return select(a < b, a, b); }
 VANTAGE_KERNEL_INLINE vi max(vi a, vi b) { return select(a > b, a, b); }
+// In the operand order of maxps/minps (and NaN goes to lo).
 VANTAGE_KERNEL_INLINE vf clamp(vf x, vf lo, vf hi) {
-  x = select(x < lo, lo, x);  // NaN stays NaN; callers only use lanes with finite x
-  return select(x > hi, hi, x);
+  x = select(x > lo, x, lo);
+  return select(x < hi, x, hi);
 }
 VANTAGE_KERNEL_INLINE vi floor_int(vf x) {
   const vi t = truncate(x);
@@ -164,7 +166,7 @@ struct ClusterLanes {
   // computed in vector form exactly as splat_general does pixel by pixel.
   alignas(32) std::int32_t quad_pixel[4][kLanes];  // (i0, j0), (i1, j0), (i0, j1), (i1, j1)
   alignas(32) float quad_iz[4][kLanes];
-  alignas(32) std::int32_t quad[kLanes];  // 1: a quad splat
+  std::uint32_t quad;  // bit i: lane i is a quad splat
   // Every other footprint that may touch the image (larger, or the centre outside): splat_general.
   alignas(32) float u[kLanes];
   alignas(32) float v[kLanes];
@@ -172,7 +174,7 @@ struct ClusterLanes {
   alignas(32) float du[kLanes];
   alignas(32) float dv[kLanes];
   alignas(32) float radius_px[kLanes];
-  alignas(32) std::int32_t general[kLanes];  // 1: a general splat
+  std::uint32_t general;  // bit i: lane i needs splat_general
 };
 
 // Lanes [o, o + 8) of the cluster at slot `base`, entries from `entry`: the projection and footprint of
@@ -225,60 +227,59 @@ inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::siz
         select(member, select(threshold > 0.0f, threshold, broadcast(3.0e38f)), broadcast(-1.0f)));
   store(out.write_pixel + o, select(single, pixel, b.spare));
   store(out.write_iz + o, iz_pixel);
-  // splat_general's bounds for the quads: the centre pixel (pi, pj) and the pixel centres in the square.
-  const vi i0 = max(min(-floor_int(-clamp(u - radius_px, broadcast(-2.0f), b.width_plus_one)), pi), vi{});
-  const vi i1 = min(max(floor_int(clamp(u + radius_px, broadcast(-2.0f), b.width_plus_one)), pi), b.last_column);
-  const vi j0 = max(min(-floor_int(-clamp(v - radius_px, broadcast(-2.0f), b.height_plus_one)), pj), vi{});
-  const vi j1 = min(max(floor_int(clamp(v + radius_px, broadcast(-2.0f), b.height_plus_one)), pj), b.last_row);
-  const vf row0 = inv_z + dv * (to_float(j0) - v);
-  const vf row1 = inv_z + dv * (to_float(j1) - v);
-  const vf step0 = du * (to_float(i0) - u);
-  const vf step1 = du * (to_float(i1) - u);
-  store(out.quad_pixel[0] + o, j0 * b.width + i0);
-  store(out.quad_pixel[1] + o, j0 * b.width + i1);
-  store(out.quad_pixel[2] + o, j1 * b.width + i0);
-  store(out.quad_pixel[3] + o, j1 * b.width + i1);
-  store(out.quad_iz[0] + o, row0 + step0);
-  store(out.quad_iz[1] + o, row0 + step1);
-  store(out.quad_iz[2] + o, row1 + step0);
-  store(out.quad_iz[3] + o, row1 + step1);
-  store(out.quad + o, quad & 1);
-  store(out.u + o, u);
-  store(out.v + o, v);
-  store(out.iz + o, inv_z);
-  store(out.du + o, du);
-  store(out.dv + o, dv);
-  store(out.radius_px + o, radius_px);
-  store(out.general + o, (front & overlaps & ~single & ~quad) & 1);
+  // Quads and general splats are rare in far views: their data only when a lane needs it.
+  const std::uint32_t quad_bits = bits(quad);
+  if (quad_bits != 0) {
+    // splat_general's pixel range: for 0.5 <= r < 1 it holds the centre pixel, so no min/max with it.
+    const vi i0 = max(-floor_int(-clamp(u - radius_px, b.minus_two, b.width_plus_one)), vi{});
+    const vi i1 = min(floor_int(clamp(u + radius_px, b.minus_two, b.width_plus_one)), b.last_column);
+    const vi j0 = max(-floor_int(-clamp(v - radius_px, b.minus_two, b.height_plus_one)), vi{});
+    const vi j1 = min(floor_int(clamp(v + radius_px, b.minus_two, b.height_plus_one)), b.last_row);
+    const vf row0 = inv_z + dv * (to_float(j0) - v);
+    const vf row1 = inv_z + dv * (to_float(j1) - v);
+    const vf step0 = du * (to_float(i0) - u);
+    const vf step1 = du * (to_float(i1) - u);
+    store(out.quad_pixel[0] + o, j0 * b.width + i0);
+    store(out.quad_pixel[1] + o, j0 * b.width + i1);
+    store(out.quad_pixel[2] + o, j1 * b.width + i0);
+    store(out.quad_pixel[3] + o, j1 * b.width + i1);
+    store(out.quad_iz[0] + o, row0 + step0);
+    store(out.quad_iz[1] + o, row0 + step1);
+    store(out.quad_iz[2] + o, row1 + step0);
+    store(out.quad_iz[3] + o, row1 + step1);
+    out.quad |= quad_bits << o;
+  }
+  const std::uint32_t general_bits = bits(front & overlaps & ~single & ~quad);
+  if (general_bits != 0) {
+    store(out.u + o, u);
+    store(out.v + o, v);
+    store(out.iz + o, inv_z);
+    store(out.du + o, du);
+    store(out.dv + o, dv);
+    store(out.radius_px + o, radius_px);
+    out.general |= general_bits << o;
+  }
   return member;
 }
 
 // The scalar pass of one cluster: single-pixel splats (branch-free, masked lanes write the spare cell),
-// then the quads and the general splats of the lanes that need them.
+// then the quads and the general splats, lane by lane through their bit masks.
 inline void splat_cluster(const ClusterLanes& in, const ViewConstants& kc, float* __restrict depth) {
-  std::uint32_t quad_lanes[kLanes];
-  std::uint32_t general_lanes[kLanes];
-  std::size_t quad_count = 0;
-  std::size_t general_count = 0;
   for (std::size_t i = 0; i < kLanes; ++i) {
     float& cell = depth[in.write_pixel[i]];
     const float iz = in.write_iz[i];
     cell = iz > cell ? iz : cell;
-    quad_lanes[quad_count] = static_cast<std::uint32_t>(i);
-    quad_count += static_cast<std::size_t>(in.quad[i]);
-    general_lanes[general_count] = static_cast<std::uint32_t>(i);
-    general_count += static_cast<std::size_t>(in.general[i]);
   }
-  for (std::size_t q = 0; q < quad_count; ++q) {
-    const std::uint32_t i = quad_lanes[q];
+  for (std::uint32_t m = in.quad; m != 0; m &= m - 1) {
+    const int i = __builtin_ctz(m);
     for (std::size_t c = 0; c < 4; ++c) {
       float& cell = depth[in.quad_pixel[c][i]];
       const float iz = in.quad_iz[c][i];
       cell = iz > cell ? iz : cell;
     }
   }
-  for (std::size_t g = 0; g < general_count; ++g) {
-    const std::uint32_t i = general_lanes[g];
+  for (std::uint32_t m = in.general; m != 0; m &= m - 1) {
+    const int i = __builtin_ctz(m);
     splat_kernel::splat_general(depth, kc.width, kc.height, in.u[i], in.v[i], in.iz[i], in.du[i], in.dv[i],
                                 in.radius_px[i]);
   }
@@ -353,6 +354,8 @@ std::size_t render(const Slots& s, const ViewConstants& kc, const std::uint32_t*
   ClusterLanes lanes;
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t base = static_cast<std::size_t>(clusters[k]) * kLanes;
+    lanes.quad = 0;
+    lanes.general = 0;
     for (std::size_t o = 0; o < kLanes; o += kWidth) candidates -= project(s, b, base, k * kLanes, o, target, lanes);
     splat_cluster(lanes, kc, target.depth);
   }
@@ -365,30 +368,36 @@ double sum_visible(const Slots& s, const ViewConstants& kc, const std::uint32_t*
                    const Target& target) {
   const Broadcast b(kc);
   const float* __restrict depth = target.depth;
+  const vi lane_bit = {1, 2, 4, 8, 16, 32, 64, 128};
   double total = 0.0;
-  vf partial = vf{};
-  std::size_t since_flush = 0;
-  for (std::size_t k = 0; k < count; ++k) {
-    const std::size_t entry = k * kLanes;
-    vi visible[kLanes / kWidth];
-    vi any_visible = vi{};
-    for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
-      const std::size_t e = entry + h * kWidth;
-      visible[h] = gather(depth, load(target.pixel + e)) <= load(target.threshold + e);
-      any_visible |= visible[h];
+  // Blocks of clusters: first the depth test of every lane and the list of clusters with a visible lane,
+  // then the weights of the listed clusters in a loop without data-dependent branches, which the CPU
+  // overlaps across clusters (the weights are long dependency chains: log2, exp2, division, root).
+  std::uint32_t listed[kBlockClusters];
+  std::uint32_t visible_bits[kBlockClusters];
+  for (std::size_t k0 = 0; k0 < count; k0 += kBlockClusters) {
+    const std::size_t end = count - k0 < kBlockClusters ? count : k0 + kBlockClusters;
+    std::size_t n = 0;
+    for (std::size_t k = k0; k < end; ++k) {
+      std::uint32_t visible = 0;
+      for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
+        const std::size_t e = k * kLanes + h * kWidth;
+        visible |= bits(gather(depth, load(target.pixel + e)) <= load(target.threshold + e)) << (h * kWidth);
+      }
+      listed[n] = static_cast<std::uint32_t>(k);
+      visible_bits[n] = visible;
+      n += visible != 0 ? 1 : 0;
     }
-    if (!any(any_visible)) continue;  // occluded or empty cluster: no weights
-    const std::size_t base = static_cast<std::size_t>(clusters[k]) * kLanes;
-    for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
-      partial += select(visible[h], weights(s, b, base + h * kWidth), vf{});
+    vf partial = vf{};  // at most 2 kBlockClusters terms per lane in float, then double
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t base = static_cast<std::size_t>(clusters[listed[i]]) * kLanes;
+      for (std::size_t h = 0; h < kLanes / kWidth; ++h) {
+        const vi visible = (broadcast(static_cast<std::int32_t>(visible_bits[i] >> (h * kWidth))) & lane_bit) != 0;
+        partial += select(visible, weights(s, b, base + h * kWidth), vf{});
+      }
     }
-    if (++since_flush == kFlushClusters) {
-      for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<double>(partial[i]);
-      partial = vf{};
-      since_flush = 0;
-    }
+    for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<double>(partial[i]);
   }
-  for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<double>(partial[i]);
   return total;
 }
 
