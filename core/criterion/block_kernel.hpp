@@ -76,10 +76,12 @@ struct Target {
 // cone: angle(axis, camera - centre) > 90 deg + alpha + asin(r / d)). Returns how many.
 using CullFunction = std::size_t (*)(const Bounds& bounds, const ViewConstants& view, std::size_t count,
                                      std::uint32_t* kept);
-// Splats the front-facing primitives of the clusters (slot base clusters[k] * kLanes) into target.depth
-// and fills their entries. Returns the number of candidates (front-facing, centre in the image).
-using RenderFunction = std::size_t (*)(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters,
-                                       std::size_t count, const Target& target);
+// Splats the front-facing primitives of the clusters (slot base clusters[k] * kLanes) into target.depth,
+// drops from `clusters` (in place, order kept) those without a candidate (front-facing, centre in the
+// image) and fills the entries of the rest: entry n * kLanes + i for lane i of the n-th remaining
+// cluster. Returns how many clusters remain; *candidates = the number of candidates.
+using RenderFunction = std::size_t (*)(const Slots& slots, const ViewConstants& view, std::uint32_t* clusters,
+                                       std::size_t count, const Target& target, std::size_t* candidates);
 // After render: sum of w' g^h / f' over the visible lanes of positive radius (scaled units, F / scale^2).
 using SumFunction = double (*)(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters,
                                std::size_t count, const Target& target);
@@ -92,8 +94,8 @@ struct Functions {
 
 namespace baseline {
 std::size_t cull(const Bounds& bounds, const ViewConstants& view, std::size_t count, std::uint32_t* kept);
-std::size_t render(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters, std::size_t count,
-                   const Target& target);
+std::size_t render(const Slots& slots, const ViewConstants& view, std::uint32_t* clusters, std::size_t count,
+                   const Target& target, std::size_t* candidates);
 double sum_visible(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters, std::size_t count,
                    const Target& target);
 }  // namespace baseline
@@ -102,8 +104,8 @@ double sum_visible(const Slots& slots, const ViewConstants& view, const std::uin
 #define VANTAGE_CRITERION_HAS_AVX2_KERNEL 1
 namespace avx2_fma {
 std::size_t cull(const Bounds& bounds, const ViewConstants& view, std::size_t count, std::uint32_t* kept);
-std::size_t render(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters, std::size_t count,
-                   const Target& target);
+std::size_t render(const Slots& slots, const ViewConstants& view, std::uint32_t* clusters, std::size_t count,
+                   const Target& target, std::size_t* candidates);
 double sum_visible(const Slots& slots, const ViewConstants& view, const std::uint32_t* clusters, std::size_t count,
                    const Target& target);
 }  // namespace avx2_fma

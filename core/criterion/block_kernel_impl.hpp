@@ -166,7 +166,8 @@ struct ClusterLanes {
   // computed in vector form exactly as splat_general does pixel by pixel.
   alignas(32) std::int32_t quad_pixel[4][kLanes];  // (i0, j0), (i1, j0), (i0, j1), (i1, j1)
   alignas(32) float quad_iz[4][kLanes];
-  std::uint32_t quad;  // bit i: lane i is a quad splat
+  std::uint32_t single;  // bit i: lane i is a single-pixel splat
+  std::uint32_t quad;    // bit i: lane i is a quad splat
   // Every other footprint that may touch the image (larger, or the centre outside): splat_general.
   alignas(32) float u[kLanes];
   alignas(32) float v[kLanes];
@@ -219,14 +220,12 @@ inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::siz
   const vi member = front & in_image;
   const vi single = member & (radius_px < 0.5f);
   const vi quad = member & ~single & (radius_px < 1.0f);
-  // Larger or off-centre footprints go to the general splat, unless the square misses the image.
-  const vi overlaps = (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < b.u_max) &
-                      (v - radius_px < b.v_max);
   store(target.pixel + entry + o, select(member, pixel, b.spare));
   store(target.threshold + entry + o,
         select(member, select(threshold > 0.0f, threshold, broadcast(3.0e38f)), broadcast(-1.0f)));
   store(out.write_pixel + o, select(single, pixel, b.spare));
   store(out.write_iz + o, iz_pixel);
+  out.single |= bits(single) << o;
   // Quads and general splats are rare in far views: their data only when a lane needs it.
   const std::uint32_t quad_bits = bits(quad);
   if (quad_bits != 0) {
@@ -249,7 +248,14 @@ inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::siz
     store(out.quad_iz[3] + o, row1 + step1);
     out.quad |= quad_bits << o;
   }
-  const std::uint32_t general_bits = bits(front & overlaps & ~single & ~quad);
+  // Larger footprints, and those with the centre outside the image unless the square misses it.
+  vi general = member & ~single & ~quad;
+  const vi off_centre = front & ~in_image;
+  if (bits(off_centre) != 0) {
+    general |= off_centre & (u + radius_px >= -0.5f) & (v + radius_px >= -0.5f) & (u - radius_px < b.u_max) &
+               (v - radius_px < b.v_max);
+  }
+  const std::uint32_t general_bits = bits(general);
   if (general_bits != 0) {
     store(out.u + o, u);
     store(out.v + o, v);
@@ -265,10 +271,13 @@ inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::siz
 // The scalar pass of one cluster: single-pixel splats (branch-free, masked lanes write the spare cell),
 // then the quads and the general splats, lane by lane through their bit masks.
 inline void splat_cluster(const ClusterLanes& in, const ViewConstants& kc, float* __restrict depth) {
-  for (std::size_t i = 0; i < kLanes; ++i) {
-    float& cell = depth[in.write_pixel[i]];
-    const float iz = in.write_iz[i];
-    cell = iz > cell ? iz : cell;
+  for (std::size_t o = 0; o < kLanes; o += kWidth) {
+    if ((in.single >> o & 0xFFu) == 0) continue;  // near views: no single-pixel lane in whole vectors
+    for (std::size_t i = o; i < o + kWidth; ++i) {
+      float& cell = depth[in.write_pixel[i]];
+      const float iz = in.write_iz[i];
+      cell = iz > cell ? iz : cell;
+    }
   }
   for (std::uint32_t m = in.quad; m != 0; m &= m - 1) {
     const int i = __builtin_ctz(m);
@@ -347,21 +356,32 @@ std::size_t cull(const Bounds& bo, const ViewConstants& kc, std::size_t count, s
   return n;
 }
 
-std::size_t render(const Slots& s, const ViewConstants& kc, const std::uint32_t* clusters, std::size_t count,
-                   const Target& target) {
+std::size_t render(const Slots& s, const ViewConstants& kc, std::uint32_t* clusters, std::size_t count,
+                   const Target& target, std::size_t* candidates) {
   const Broadcast b(kc);
-  vi candidates = vi{};
+  vi members = vi{};
+  std::size_t n = 0;
   ClusterLanes lanes;
   for (std::size_t k = 0; k < count; ++k) {
-    const std::size_t base = static_cast<std::size_t>(clusters[k]) * kLanes;
+    const std::uint32_t cluster = clusters[k];
+    const std::size_t base = static_cast<std::size_t>(cluster) * kLanes;
+    lanes.single = 0;
     lanes.quad = 0;
     lanes.general = 0;
-    for (std::size_t o = 0; o < kLanes; o += kWidth) candidates -= project(s, b, base, k * kLanes, o, target, lanes);
+    vi member = vi{};
+    for (std::size_t o = 0; o < kLanes; o += kWidth) {
+      const vi m = project(s, b, base, n * kLanes, o, target, lanes);
+      members -= m;
+      member |= m;
+    }
     splat_cluster(lanes, kc, target.depth);
+    clusters[n] = cluster;  // n <= k: the entries written above stay when the cluster has a candidate
+    n += bits(member) != 0 ? 1 : 0;
   }
   std::size_t total = 0;
-  for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<std::size_t>(candidates[i]);
-  return total;
+  for (std::size_t i = 0; i < kWidth; ++i) total += static_cast<std::size_t>(members[i]);
+  *candidates = total;
+  return n;
 }
 
 double sum_visible(const Slots& s, const ViewConstants& kc, const std::uint32_t* clusters, std::size_t count,

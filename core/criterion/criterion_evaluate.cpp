@@ -154,7 +154,8 @@ void CriterionModelView::render(ViewSetup& setup, CriterionScratchView& scratch)
   scratch.clusters_total_ = cluster_total;
   scratch.clusters_kept_ = kept;
   const criterion_kernel::Target target{depth.inverse_depth_data(), scratch.pixel_, scratch.threshold_};
-  scratch.candidates_ = setup.kernel.render(kernel_slots(arrays_), kc, scratch.clusters_, kept, target);
+  scratch.clusters_rendered_ =
+      setup.kernel.render(kernel_slots(arrays_), kc, scratch.clusters_, kept, target, &scratch.candidates_);
 }
 
 Status CriterionModelView::evaluate(const Viewpoint& view, const PinholeIntrinsics& intrinsics,
@@ -166,7 +167,7 @@ Status CriterionModelView::evaluate(const Viewpoint& view, const PinholeIntrinsi
   // Level 3: the depth test, and the weights of the clusters with a visible lane.
   const criterion_kernel::Target target{scratch.depth().inverse_depth_data(), scratch.pixel_, scratch.threshold_};
   const double sum =
-      setup.kernel.sum_visible(kernel_slots(arrays_), setup.constants, scratch.clusters_, scratch.clusters_kept_, target);
+      setup.kernel.sum_visible(kernel_slots(arrays_), setup.constants, scratch.clusters_, scratch.clusters_rendered_, target);
   *F_out = sum * scale_ * scale_;
   return Status::kOk;
 }
@@ -181,7 +182,7 @@ Status CriterionModelView::visible_primitives(const Viewpoint& view, const Pinho
   render(setup, scratch);
   const float* buffer = scratch.depth().inverse_depth_data();
   std::size_t count = 0;
-  const std::size_t entries = scratch.clusters_kept_ * kClusterSize;
+  const std::size_t entries = scratch.clusters_rendered_ * kClusterSize;
   for (std::size_t e = 0; e < entries; ++e) {
     if (!(buffer[scratch.pixel_[e]] <= scratch.threshold_[e])) continue;
     const std::size_t slot = static_cast<std::size_t>(scratch.clusters_[e / kClusterSize]) * kClusterSize + e % kClusterSize;
@@ -209,7 +210,7 @@ Status CriterionModelView::primitive_terms(const Viewpoint& view, const PinholeI
   render(setup, scratch);
   const float* buffer = scratch.depth().inverse_depth_data();
   bool visible = false;
-  for (std::size_t k = 0; k < scratch.clusters_kept_; ++k) {
+  for (std::size_t k = 0; k < scratch.clusters_rendered_; ++k) {
     if (scratch.clusters_[k] == slot / kClusterSize) {
       const std::size_t e = k * kClusterSize + slot % kClusterSize;
       visible = buffer[scratch.pixel_[e]] <= scratch.threshold_[e];

@@ -109,12 +109,13 @@ class CriterionScratchView {
  private:
   friend class CriterionModelView;
   DepthBufferView& depth_;
-  std::uint32_t* clusters_;
+  std::uint32_t* clusters_;  // after a render: the kept clusters with a candidate
   std::int32_t* pixel_;     // entry k * kClusterSize + i: lane i of clusters_[k]
   float* threshold_;        // visible when depth[pixel] <= threshold (-1: cannot be visible)
   std::size_t capacity_;    // primitives (a multiple of kClusterSize)
   std::size_t clusters_total_ = 0;
   std::size_t clusters_kept_ = 0;
+  std::size_t clusters_rendered_ = 0;  // clusters_[0, clusters_rendered_): kept, with a candidate
   std::size_t candidates_ = 0;
   CriterionKernel kernel_ = CriterionKernel::kAuto;
 };
