@@ -120,19 +120,27 @@ class CriterionScratchView {
   CriterionKernel kernel_ = CriterionKernel::kAuto;
 };
 
+// The scratch's buffers, a base class constructed before CriterionScratchView receives pointers to them.
+template <std::size_t Slots, std::int32_t W, std::int32_t H>
+struct CriterionScratchStorage {
+  DepthBuffer<W, H> depth_buffer_;
+  std::array<std::uint32_t, Slots / kClusterSize> clusters_{};
+  std::array<std::int32_t, Slots> pixel_{};
+  std::array<float, Slots> threshold_{};
+};
+
 template <std::size_t Capacity, std::int32_t W = 160, std::int32_t H = 120>
-class CriterionScratch : public CriterionScratchView {
+class CriterionScratch : private CriterionScratchStorage<round_up_to_clusters(Capacity), W, H>,
+                         public CriterionScratchView {
  public:
   static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
   static_assert(Capacity > 0, "scratch needs a positive capacity");
   CriterionScratch()
-      : CriterionScratchView(depth_buffer_, clusters_.data(), pixel_.data(), threshold_.data(), kSlots) {}
+      : CriterionScratchView(Storage::depth_buffer_, Storage::clusters_.data(), Storage::pixel_.data(),
+                             Storage::threshold_.data(), kSlots) {}
 
  private:
-  DepthBuffer<W, H> depth_buffer_;
-  std::array<std::uint32_t, kSlots / kClusterSize> clusters_{};
-  std::array<std::int32_t, kSlots> pixel_{};
-  std::array<float, kSlots> threshold_{};
+  using Storage = CriterionScratchStorage<kSlots, W, H>;  // qualified: the view has members of the same names
 };
 
 // Structure-of-arrays storage of the cluster bounds (ClusterBounds field by field), readable up to a
@@ -237,30 +245,34 @@ class CriterionModelView {
   bool refreshed_ = false;
 };
 
-// Owner of the cache for up to Capacity primitives: about 72 bytes per primitive.
-template <std::size_t Capacity = kDefaultPrimitiveCapacity>
-class CriterionModel : public CriterionModelView {
- public:
-  static_assert(Capacity > 0, "criterion model needs a positive capacity");
-  static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
+// The cache's arrays (slots, and cluster bounds rounded up to whole vectors), a base class constructed before
+// CriterionModelView receives pointers to them.
+template <std::size_t Slots>
+struct CriterionModelStorage {
   static constexpr std::size_t kClusterSlots =
-      (kSlots / kClusterSize + kClusterVector - 1) / kClusterVector * kClusterVector;
-  CriterionModel() : CriterionModelView(make_arrays(), kSlots) {}
-
- private:
-  CriterionArrays make_arrays() {
+      (Slots / kClusterSize + kClusterVector - 1) / kClusterVector * kClusterVector;
+  CriterionArrays arrays() {
     const ClusterArrays clusters{cx_.data(), cy_.data(), cz_.data(), cr_.data(),  ax_.data(),
                                  ay_.data(), az_.data(), sin_.data(), cos_.data()};
     return CriterionArrays{x_.data(),   y_.data(),   z_.data(),   nx_.data(),    ny_.data(),   nz_.data(),
                            s00_.data(), s01_.data(), s02_.data(), s11_.data(),   s12_.data(),  s22_.data(),
                            lwa_.data(), h_.data(),   r_.data(),   index_.data(), keys_.data(), clusters};
   }
-  std::array<float, kSlots> x_{}, y_{}, z_{}, nx_{}, ny_{}, nz_{};
-  std::array<float, kSlots> s00_{}, s01_{}, s02_{}, s11_{}, s12_{}, s22_{};
-  std::array<float, kSlots> lwa_{}, h_{}, r_{};
-  std::array<PrimitiveIndex, kSlots> index_{};
-  std::array<std::uint64_t, kSlots> keys_{};
+  std::array<float, Slots> x_{}, y_{}, z_{}, nx_{}, ny_{}, nz_{};
+  std::array<float, Slots> s00_{}, s01_{}, s02_{}, s11_{}, s12_{}, s22_{};
+  std::array<float, Slots> lwa_{}, h_{}, r_{};
+  std::array<PrimitiveIndex, Slots> index_{};
+  std::array<std::uint64_t, Slots> keys_{};
   std::array<float, kClusterSlots> cx_{}, cy_{}, cz_{}, cr_{}, ax_{}, ay_{}, az_{}, sin_{}, cos_{};
+};
+
+// Owner of the cache for up to Capacity primitives: about 72 bytes per primitive.
+template <std::size_t Capacity = kDefaultPrimitiveCapacity>
+class CriterionModel : private CriterionModelStorage<round_up_to_clusters(Capacity)>, public CriterionModelView {
+ public:
+  static_assert(Capacity > 0, "criterion model needs a positive capacity");
+  static constexpr std::size_t kSlots = round_up_to_clusters(Capacity);
+  CriterionModel() : CriterionModelView(CriterionModelStorage<kSlots>::arrays(), kSlots) {}
 };
 
 }  // namespace vantage

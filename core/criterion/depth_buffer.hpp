@@ -144,16 +144,19 @@ class DepthBufferView {
 
 // The paper's GPU rendered at the camera's resolution; 160x120 (a quarter of VGA per side) keeps a
 // 70K-primitive model at a few primitives per pixel, enough to resolve self-occlusion of the object.
+// The owners' arrays are base classes constructed before the views that receive pointers to them.
+template <std::int32_t W, std::int32_t H>
+struct DepthBufferStorage {
+  std::array<float, static_cast<std::size_t>(W) * static_cast<std::size_t>(H) + 1> pixels_{};  // + spare
+};
+
 template <std::int32_t W = 160, std::int32_t H = 120>
-class DepthBuffer : public DepthBufferView {
+class DepthBuffer : private DepthBufferStorage<W, H>, public DepthBufferView {
  public:
   static_assert(W > 0 && H > 0, "depth buffer needs a positive size");
   static constexpr std::int32_t kWidth = W;
   static constexpr std::int32_t kHeight = H;
-  DepthBuffer() : DepthBufferView(pixels_.data(), W, H) {}
-
- private:
-  std::array<float, static_cast<std::size_t>(W) * static_cast<std::size_t>(H) + 1> pixels_{};  // + spare
+  DepthBuffer() : DepthBufferView(DepthBufferStorage<W, H>::pixels_.data(), W, H) {}
 };
 
 // Scales intrinsics to a buffer of width x height pixels (pixel centres preserved). Caller validates.

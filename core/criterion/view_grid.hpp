@@ -98,25 +98,33 @@ class ViewGridView {
   bool configured_ = false;
 };
 
+// The grid's arrays, a base class constructed before ViewGridView receives pointers to them.
+template <std::size_t Cells>
+struct ViewGridStorage {
+  std::array<Viewpoint, Cells> views_{};
+  std::array<std::uint8_t, Cells> view_ok_{};
+  std::array<double, Cells> F_{};
+  std::array<float, Cells> cost_{};
+  std::array<std::uint8_t, Cells> object_{};
+  std::array<std::uint8_t, Cells> blocked_{};
+  std::array<std::uint8_t, Cells> free_{};
+  std::array<std::uint8_t, Cells> evaluated_{};
+};
+
 template <std::int32_t M = 60>
-class ViewGrid : public ViewGridView {
+class ViewGrid : private ViewGridStorage<static_cast<std::size_t>(M) * static_cast<std::size_t>(M)>,
+                 public ViewGridView {
  public:
   static_assert(M > 0 && M <= 4096, "grid side out of range");
   static constexpr std::int32_t kCellsPerSide = M;
   static constexpr std::size_t kCells = static_cast<std::size_t>(M) * static_cast<std::size_t>(M);
   ViewGrid()
-      : ViewGridView(M, views_.data(), view_ok_.data(), F_.data(), cost_.data(), object_.data(), blocked_.data(),
-                     free_.data(), evaluated_.data()) {}
+      : ViewGridView(M, Storage::views_.data(), Storage::view_ok_.data(), Storage::F_.data(), Storage::cost_.data(),
+                     Storage::object_.data(), Storage::blocked_.data(), Storage::free_.data(),
+                     Storage::evaluated_.data()) {}
 
  private:
-  std::array<Viewpoint, kCells> views_{};
-  std::array<std::uint8_t, kCells> view_ok_{};
-  std::array<double, kCells> F_{};
-  std::array<float, kCells> cost_{};
-  std::array<std::uint8_t, kCells> object_{};
-  std::array<std::uint8_t, kCells> blocked_{};
-  std::array<std::uint8_t, kCells> free_{};
-  std::array<std::uint8_t, kCells> evaluated_{};
+  using Storage = ViewGridStorage<kCells>;  // qualified: the view has members of the same names
 };
 
 }  // namespace vantage

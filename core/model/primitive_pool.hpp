@@ -56,18 +56,25 @@ class PrimitivePoolView {
   std::uint64_t revision_ = 0;
 };
 
+// The pool's arrays, a base class so they are constructed before PrimitivePoolView receives pointers to them.
+template <std::size_t N>
+struct PrimitivePoolStorage {
+  std::array<Primitive, N> items_{};
+  std::array<std::uint8_t, N> alive_{};
+  std::array<PrimitiveIndex, N> free_list_{};
+};
+
 template <std::size_t N = kDefaultPrimitiveCapacity>
-class PrimitivePool : public PrimitivePoolView {
+class PrimitivePool : private PrimitivePoolStorage<N>, public PrimitivePoolView {
  public:
   static_assert(N > 0 && N < kInvalidPrimitive, "pool capacity must fit a PrimitiveIndex");
   static constexpr std::size_t kCapacity = N;
 
-  PrimitivePool() : PrimitivePoolView(items_.data(), alive_.data(), free_list_.data(), N) {}
+  PrimitivePool()
+      : PrimitivePoolView(Storage::items_.data(), Storage::alive_.data(), Storage::free_list_.data(), N) {}
 
  private:
-  std::array<Primitive, N> items_{};
-  std::array<std::uint8_t, N> alive_{};
-  std::array<PrimitiveIndex, N> free_list_{};
+  using Storage = PrimitivePoolStorage<N>;  // qualified: the view has members of the same names
 };
 
 }  // namespace vantage
