@@ -1,6 +1,6 @@
 // The criterion's per-view inner loops (block_kernel.hpp), written with GCC/Clang vector extensions:
-// 8-lane float vectors that GCC lowers to one AVX2 register, two SSE2 registers or two NEON registers, so
-// the code is vector code whatever the autovectorizer decides. Included once per build of the kernel, with
+// float vectors of the ISA's width (8 lanes with AVX2, 4 with SSE2 or NEON), so the code is vector code
+// whatever the autovectorizer decides. Included once per build of the kernel, with
 // VANTAGE_KERNEL_NS naming the namespace of that build (block_kernel.cpp: baseline, block_kernel_avx2.cpp:
 // avx2_fma). Everything here has internal linkage or lives in that namespace, and nothing from another
 // header is instantiated, so the builds cannot leak into each other through the linker.
@@ -28,10 +28,16 @@ namespace {
 
 #define VANTAGE_KERNEL_INLINE inline __attribute__((always_inline))
 
-typedef float vf __attribute__((vector_size(32)));
-typedef std::int32_t vi __attribute__((vector_size(32)));
-typedef float vf4 __attribute__((vector_size(16)));
+// The widest vectors the build's ISA has: GCC lowers wider generic vectors badly where the ISA lacks them
+// (SSE2 compares of 8 lanes go scalar), so 8 lanes with AVX, else 4 (SSE2, NEON).
+#if defined(__AVX__)
 constexpr std::size_t kWidth = 8;
+#else
+constexpr std::size_t kWidth = 4;
+#endif
+typedef float vf __attribute__((vector_size(4 * kWidth)));
+typedef std::int32_t vi __attribute__((vector_size(4 * kWidth)));
+constexpr std::uint32_t kVectorBits = (1u << kWidth) - 1;
 static_assert(kLanes % kWidth == 0, "a cluster is a whole number of vectors");
 constexpr std::size_t kBlockClusters = 128;  // sum_visible's block; its float partial sums go to double after each
 
@@ -58,13 +64,9 @@ VANTAGE_KERNEL_INLINE vf square_root(vf x) {
 #if defined(__AVX__)
   return __builtin_ia32_sqrtps256(x);
 #elif defined(__SSE__)
-  const vf4 lo = __builtin_ia32_sqrtps(__builtin_shufflevector(x, x, 0, 1, 2, 3));
-  const vf4 hi = __builtin_ia32_sqrtps(__builtin_shufflevector(x, x, 4, 5, 6, 7));
-  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+  return __builtin_ia32_sqrtps(x);
 #elif defined(__aarch64__)
-  const vf4 lo = __builtin_aarch64_sqrtv4sf(__builtin_shufflevector(x, x, 0, 1, 2, 3));
-  const vf4 hi = __builtin_aarch64_sqrtv4sf(__builtin_shufflevector(x, x, 4, 5, 6, 7));
-  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+  return __builtin_aarch64_sqrtv4sf(x);
 #else
   vf r;
   for (std::size_t i = 0; i < kWidth; ++i) r[i] = __builtin_sqrtf(x[i]);
@@ -72,18 +74,21 @@ VANTAGE_KERNEL_INLINE vf square_root(vf x) {
 #endif
 }
 
+// Lane i's bit, 1 << i, in every lane.
+VANTAGE_KERNEL_INLINE vi lane_bits() {
+  vi w;
+  for (std::size_t i = 0; i < kWidth; ++i) w[i] = static_cast<std::int32_t>(1u << i);
+  return w;
+}
+
 // The mask's lanes as bits (lane i -> bit i).
 VANTAGE_KERNEL_INLINE std::uint32_t bits(vi mask) {
 #if defined(__AVX__)
   return static_cast<std::uint32_t>(__builtin_ia32_movmskps256(reinterpret_cast<vf>(mask)));
 #elif defined(__SSE__)
-  const std::uint32_t lo = static_cast<std::uint32_t>(
-      __builtin_ia32_movmskps(reinterpret_cast<vf4>(__builtin_shufflevector(mask, mask, 0, 1, 2, 3))));
-  const std::uint32_t hi = static_cast<std::uint32_t>(
-      __builtin_ia32_movmskps(reinterpret_cast<vf4>(__builtin_shufflevector(mask, mask, 4, 5, 6, 7))));
-  return lo | hi << 4;
+  return static_cast<std::uint32_t>(__builtin_ia32_movmskps(reinterpret_cast<vf>(mask)));
 #else
-  const vi weighted = mask & vi{1, 2, 4, 8, 16, 32, 64, 128};
+  const vi weighted = mask & lane_bits();
   std::uint32_t r = 0;
   for (std::size_t i = 0; i < kWidth; ++i) r |= static_cast<std::uint32_t>(weighted[i]);
   return r;
@@ -91,8 +96,9 @@ VANTAGE_KERNEL_INLINE std::uint32_t bits(vi mask) {
 }
 
 VANTAGE_KERNEL_INLINE vf gather(const float* base, vi index) {
-  return vf{base[index[0]], base[index[1]], base[index[2]], base[index[3]],
-            base[index[4]], base[index[5]], base[index[6]], base[index[7]]};
+  vf r;
+  for (std::size_t i = 0; i < kWidth; ++i) r[i] = base[index[i]];
+  return r;
 }
 
 // fast::log2 and fast::exp2 (fast_math.hpp) lane by lane: the same operations in the same order.
@@ -272,7 +278,7 @@ inline vi project(const Slots& s, const Broadcast& b, std::size_t base, std::siz
 // then the quads and the general splats, lane by lane through their bit masks.
 inline void splat_cluster(const ClusterLanes& in, const ViewConstants& kc, float* __restrict depth) {
   for (std::size_t o = 0; o < kLanes; o += kWidth) {
-    if ((in.single >> o & 0xFFu) == 0) continue;  // near views: no single-pixel lane in whole vectors
+    if ((in.single >> o & kVectorBits) == 0) continue;  // near views: no single-pixel lane in whole vectors
     for (std::size_t i = o; i < o + kWidth; ++i) {
       float& cell = depth[in.write_pixel[i]];
       const float iz = in.write_iz[i];
@@ -388,7 +394,7 @@ double sum_visible(const Slots& s, const ViewConstants& kc, const std::uint32_t*
                    const Target& target) {
   const Broadcast b(kc);
   const float* __restrict depth = target.depth;
-  const vi lane_bit = {1, 2, 4, 8, 16, 32, 64, 128};
+  const vi lane_bit = lane_bits();
   double total = 0.0;
   // Blocks of clusters: first the depth test of every lane and the list of clusters with a visible lane,
   // then the weights of the listed clusters in a loop without data-dependent branches, which the CPU

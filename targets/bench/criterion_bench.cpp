@@ -2,11 +2,13 @@
 // model sampled from the bunny. Target: the full grid in <= 0.5 s with 2 threads (>= 7,200 views/s).
 // Run (Release): vantage-bench --benchmark_filter=Criterion --benchmark_repetitions=5
 //                --benchmark_report_aggregates_only=true
-// The label names the kernel the views ran (core/criterion/block_kernel.hpp: AVX2+FMA when the CPU has it).
+// The label names the kernel the views ran (core/criterion/block_kernel.hpp: AVX2+FMA when the CPU has it);
+// VANTAGE_CRITERION_KERNEL=baseline runs the portable build instead.
 #include <benchmark/benchmark.h>
 
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <memory>
 #include <string>
@@ -46,7 +48,17 @@ Fixture* fixture(benchmark::State& state) {
       vantage::Status s = f->model.refresh(*pool);
       if (vantage::ok(s)) s = f->grid.configure(bunny.grid, Eigen::Vector3d::Zero());
       if (vantage::ok(s)) s = f->grid.update_free_mask(f->model, vantage::kDefaultSafetyMargin);
-      if (!vantage::ok(s)) {
+      // VANTAGE_CRITERION_KERNEL=baseline measures the portable build of the view loops.
+      const char* kernel = std::getenv("VANTAGE_CRITERION_KERNEL");
+      if (kernel != nullptr && std::string(kernel) == "baseline") {
+        for (auto& scratch : f->scratch) {
+          if (vantage::ok(s)) s = scratch.select_kernel(vantage::CriterionKernel::kBaseline);
+        }
+      } else if (kernel != nullptr && std::string(kernel) != "auto") {
+        error = std::string("VANTAGE_CRITERION_KERNEL: '") + kernel + "' is neither 'baseline' nor 'auto'";
+        f.reset();
+      }
+      if (f && !vantage::ok(s)) {
         error = std::string("criterion setup: ") + vantage::to_string(s);
         f.reset();
       }
