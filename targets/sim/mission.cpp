@@ -17,6 +17,7 @@
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/sim_clock.hpp"
 #include "sim_hal/sim_error.hpp"
+#include "targets/common/search_depth_range.hpp"
 #include "targets/sim/grid_driver.hpp"
 
 namespace vantage::simtarget {
@@ -167,11 +168,9 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     g_measurement.target = oracle.get();
   } else {
     FrontEndConfig fc;
-    // Depth range of the epipolar search: from close to the object (the planner goes close) to the
-    // far grid corners. Wider ranges (down to 1 unit) made the two-view initialization find nothing.
-    const double half_extent = 0.5 * geo.cells_per_side * geo.cell_size_m;
-    fc.depth_min = 0.125 * scene.viewing_distance;
-    fc.depth_max = std::sqrt(2.0) * half_extent + 0.25 * scene.viewing_distance;
+    const targets::SearchDepthRange depth = targets::default_search_depth_range(geo, scene.viewing_distance);
+    fc.depth_min = depth.min_m;
+    fc.depth_max = depth.max_m;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
