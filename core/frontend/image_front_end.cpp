@@ -56,6 +56,7 @@ Status FrontEndConfig::validate() const {
   }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
   if (ekf_iterations < 1 || ekf_iterations > 20) return Status::kInvalidArgument;
+  if (max_rejected_in_a_row > 255) return Status::kInvalidArgument;
   if (subpixel_iterations < 0 || subpixel_iterations > 20) return Status::kInvalidArgument;
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
@@ -289,6 +290,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         p.flags |= primitive_flags::kLostTrack;
+        count_rejection(i, centre_cell, pool, report);
         continue;
       }
     }
@@ -329,6 +331,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       ++report.failed_matches;
       p.flags |= primitive_flags::kLostTrack;
       if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
       continue;
     }
     ++report.matched;
@@ -350,11 +353,13 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
+      if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
       p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
       if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
     }
   }
 }
@@ -378,10 +383,24 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {
   if (!config_.confirm_spawns || !ok(pool.erase(i))) return;
   ++stats_.unconfirmed_erased;
+  forget_cell(i, centre_cell);
+}
+
+void ImageFrontEnd::forget_cell(PrimitiveIndex i, std::size_t centre_cell) {
   if (centre_cell < cell_primitive_.size() && cell_primitive_[centre_cell] == i) {
     cell_primitive_[centre_cell] = kInvalidPrimitive;
     cell_state_[centre_cell] = 0;
   }
+}
+
+void ImageFrontEnd::count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                    UpdateReport& report) {
+  if (config_.max_rejected_in_a_row == 0 || i >= kFrontEndMaxPrimitives) return;
+  if (++rejected_in_a_row_[i] < config_.max_rejected_in_a_row || !ok(pool.erase(i))) return;
+  rejected_in_a_row_[i] = 0;
+  ++stats_.gated_erased;
+  ++report.gated_erased;
+  forget_cell(i, centre_cell);
 }
 
 void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool) {
@@ -593,6 +612,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       }
       if (!ok(inserted)) continue;
       ++report.spawned;
+      if (index < kFrontEndMaxPrimitives) rejected_in_a_row_[index] = 0;
       set_normal_tilt_variance(index, config_.facing_normal_tilt_variance);
       remember_template_noise(index, p, other_view, observation.R_b_px2, fit_covariance);
       cell_primitive_[cell] = index;

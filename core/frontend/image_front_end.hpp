@@ -89,6 +89,12 @@ struct FrontEndConfig {
   // nothing else supports (a wrong epipolar match, a patch across a depth edge). Counted in
   // FrontEndStats::unconfirmed_erased.
   bool confirm_spawns = true;
+  // Track loss: a primitive whose last max_rejected_in_a_row predicted-in-view observations were all
+  // failed matches or gated is erased (FrontEndStats::gated_erased), so augmentation re-spawns its region
+  // fresh. Failed matches count too: a badly initialized primitive predicts far from its feature, beyond
+  // the capped search window, so it mostly fails to match rather than being gated. 0: never, at most 255.
+  // Off by default: with 3 the bunny mission lost coverage (README, "Track loss").
+  std::uint32_t max_rejected_in_a_row = 0;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -133,6 +139,7 @@ struct FrontEndStats {
   std::uint64_t seeds_matched = 0;
   std::uint64_t seeds_rejected_triangulation = 0;
   std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
+  std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
   EkfStats ekf;
 };
 
@@ -177,6 +184,10 @@ class ImageFrontEnd final : public MeasurementSource {
   // confirm_spawns); centre_cell (kNoCell: none) forgets it.
   static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);
   void drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool);
+  // After erasing i: its centre cell (kNoCell: none) no longer names it.
+  void forget_cell(PrimitiveIndex i, std::size_t centre_cell);
+  // Counts one failed or gated observation of primitive i; erases it at max_rejected_in_a_row.
+  void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
@@ -223,6 +234,8 @@ class ImageFrontEnd final : public MeasurementSource {
 
   // Tilt variance (rad^2 per axis) of each primitive's normal, by pool index.
   std::array<float, kFrontEndMaxPrimitives> normal_tilt_variance_{};
+  // Consecutive failed or gated observations of each primitive (FrontEndConfig::max_rejected_in_a_row).
+  std::array<std::uint8_t, kFrontEndMaxPrimitives> rejected_in_a_row_{};
   // The reference patch's noise per primitive (FrontEndConfig::model_template_noise): its covariance in
   // the creating image and its cross-covariance with the position error. Zero: not modelled.
   struct TemplateNoise {

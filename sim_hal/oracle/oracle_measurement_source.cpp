@@ -24,6 +24,9 @@ OracleMeasurementSource::OracleMeasurementSource(const EmbreeScene& scene, const
     throw SimError("oracle: pixel_sigma_px must be positive");
   }
   if (config_.site_count == 0) throw SimError("oracle: site_count must be positive");
+  if (config_.max_gated_in_a_row < 0 || config_.max_gated_in_a_row > 255) {
+    throw SimError("oracle: max_gated_in_a_row must be 0..255");
+  }
   if (config_.ekf_iterations < 1 || config_.ekf_iterations > 20) throw SimError("oracle: ekf_iterations must be 1..20");
   if (!(config_.image_margin_px >= 0.0) || !(config_.min_cos_incidence >= 0.0 && config_.min_cos_incidence < 1.0)) {
     throw SimError("oracle: image_margin_px must be >= 0 and min_cos_incidence in [0, 1)");
@@ -82,7 +85,9 @@ void OracleMeasurementSource::spawn(std::size_t site, const Viewpoint& a, const 
   }
   if (!ok(status)) return;
   if (index >= site_of_primitive_.size()) site_of_primitive_.resize(pool.capacity(), kNoSite);
+  if (index >= gated_in_a_row_.size()) gated_in_a_row_.resize(pool.capacity(), 0);
   site_of_primitive_[index] = static_cast<std::uint32_t>(site);
+  gated_in_a_row_[index] = 0;
   site_spawned_[site] = 1;
   ++owned_count_;
   if (report != nullptr) ++report->spawned;
@@ -99,6 +104,7 @@ Status OracleMeasurementSource::initialize(const GrayImageView& /*first*/, const
   pool_ = &pool;
   owned_count_ = 0;
   site_of_primitive_.assign(pool.capacity(), kNoSite);
+  gated_in_a_row_.assign(pool.capacity(), 0);
   std::fill(site_spawned_.begin(), site_spawned_.end(), 0);
   image_index_ = 1;  // images 0 and 1 are the initial pair
   for (std::size_t i = 0; i < sites_.size(); ++i) {
@@ -133,9 +139,19 @@ Status OracleMeasurementSource::update(const GrayImageView& /*image*/, const Vie
                          : ekf_update(pool[i], o, view, config_.intrinsics, ekf_, &stats);
     if (ok(u)) {
       ++local.updated;
+      gated_in_a_row_[i] = 0;
       pool[i].flags = static_cast<std::uint16_t>(pool[i].flags & ~primitive_flags::kLostTrack);
     } else if (u == Status::kGatedOutlier) {
       ++local.gated_outliers;
+      ++gated_in_a_row_[i];
+      // Track loss: its estimate disagrees with every recent observation; free the site to re-spawn it.
+      if (config_.max_gated_in_a_row > 0 && gated_in_a_row_[i] >= config_.max_gated_in_a_row && ok(pool.erase(i))) {
+        site_of_primitive_[i] = kNoSite;
+        site_spawned_[site] = 0;
+        gated_in_a_row_[i] = 0;
+        --owned_count_;
+        ++local.gated_erased;
+      }
     }
   }
   if (config_.augment) {

@@ -10,6 +10,10 @@
 //  update(view): for each primitive whose true point is seen from view, o = phi(X_true, view) + N(0, R),
 //    then ekf_update (gated outliers and accepted updates counted); then augmentation: a primitive for
 //    every site seen from this view and the previous one that has none yet, initialized as above.
+//  Track loss (max_gated_in_a_row = K > 0): a primitive whose last K observations were all rejected by
+//    the gate is erased (UpdateReport::gated_erased) and its site freed, so augmentation re-creates it
+//    from a fresh pair. A badly initialized primitive (linearized far along its first ray) fails the gate
+//    on every later view, so without this it keeps its large covariance for good.
 // Radius: the footprint of half a patch at the creating view's depth, kPatchSize/2 * z / fx. Normal: the
 // mesh normal. saliency_h = 1 (the oracle always finds its match). The image arguments are IGNORED.
 // The oracle assumes it is the only writer of the pool: update() returns kInvalidArgument when the pool
@@ -38,6 +42,7 @@ struct OracleConfig {
   double image_margin_px = kPatchSize / 2 + 1;
   double min_cos_incidence = 0.2;       // no observation at grazing angles (beyond ~78 degrees)
   bool augment = true;
+  int max_gated_in_a_row = 5;           // track loss after K consecutive gated observations; 0: never
   std::uint32_t seed = 11;
 };
 
@@ -67,6 +72,7 @@ class OracleMeasurementSource final : public MeasurementSource {
   std::vector<SurfaceSample> sites_;
   std::vector<std::uint32_t> site_of_primitive_;   // per pool index, kNoSite when none
   std::vector<std::uint8_t> site_spawned_;
+  std::vector<std::uint8_t> gated_in_a_row_;       // per pool index: consecutive gated observations
   const PrimitivePoolView* pool_ = nullptr;
   std::size_t owned_count_ = 0;
   Viewpoint previous_view_;

@@ -48,9 +48,10 @@ double pool_digest(const PrimitivePoolView& pool) {
   return digest;
 }
 
-void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewpoint& second) {
+void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewpoint& second,
+                         const FrontEndConfig& config = plane_config()) {
   g_pool.clear();
-  REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
+  REQUIRE(ok(g_front_end.configure(scene.k, config)));
   const auto a = scene.render(first);
   const auto b = scene.render(second);
   UpdateReport report;
@@ -158,6 +159,66 @@ TEST_CASE("a new primitive whose first re-observation fails is erased; a confirm
   CHECK(g_front_end.stats().unconfirmed_erased < 0.1 * report.predicted_in_view);
 }
 
+TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one rejected K-1 times then matched is kept") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  FrontEndConfig config = plane_config();
+  config.max_rejected_in_a_row = 3;
+  const std::uint32_t k = config.max_rejected_in_a_row;
+  initialize_on_plane(scene, first, second, config);
+  // Two confirmed primitives near the image centre; a checkerboard patch the image does not show makes
+  // their match fail.
+  std::vector<PrimitiveIndex> chosen;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound() && chosen.size() < 2; ++i) {
+    if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
+    g_pool[i].observation_count = 1;
+    chosen.push_back(i);
+  }
+  REQUIRE(chosen.size() == 2);
+  const PrimitiveIndex lost = chosen[0];
+  const PrimitiveIndex kept = chosen[1];
+  const auto original_patch = g_pool[kept].patch;
+  const auto spoil = [](Primitive& p) {
+    for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
+  };
+  const Viewpoint third = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
+  const auto image = scene.render(third);
+  const auto update = [&]() {
+    UpdateReport report;
+    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+    return report;
+  };
+  std::uint64_t erased_reported = 0;
+  for (std::uint32_t n = 1; n < k; ++n) {
+    spoil(g_pool[lost]);
+    spoil(g_pool[kept]);
+    erased_reported += update().gated_erased;
+    REQUIRE(g_pool.is_alive(lost));
+    REQUIRE(g_pool.is_alive(kept));
+  }
+  // The K-th rejection in a row erases it; the other one matches again, which restarts its count.
+  spoil(g_pool[lost]);
+  g_pool[kept].patch = original_patch;
+  const std::uint32_t kept_observations = g_pool[kept].observation_count;
+  erased_reported += update().gated_erased;
+  CHECK((!g_pool.is_alive(lost) || g_pool[lost].creating_view > 1u));  // the slot may hold a new primitive
+  REQUIRE(g_pool.is_alive(kept));
+  CHECK(g_pool[kept].observation_count == kept_observations + 1);
+  for (std::uint32_t n = 1; n < k; ++n) {
+    spoil(g_pool[kept]);
+    erased_reported += update().gated_erased;
+  }
+  CHECK(g_pool.is_alive(kept));
+  CHECK(g_pool[kept].creating_view <= 1u);
+  CHECK(g_front_end.stats().gated_erased >= 1u);
+  CHECK(g_front_end.stats().gated_erased == erased_reported);
+
+  FrontEndConfig off = plane_config();
+  off.max_rejected_in_a_row = 256;
+  CHECK(g_front_end.configure(scene.k, off) == Status::kInvalidArgument);
+}
+
 TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
   Scene scene;
   const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
@@ -175,7 +236,7 @@ TEST_CASE("surface no primitive covers spawns primitives there, matched against 
   REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
   CHECK(report.spawned > 100u);
   const std::uint64_t erased = g_front_end.stats().unconfirmed_erased - erased_before;
-  CHECK(g_pool.size() == before + report.spawned - report.merged - erased);
+  CHECK(g_pool.size() == before + report.spawned - report.merged - erased - report.gated_erased);
   int new_ones = 0;
   int in_hole = 0;
   double sum_sq = 0.0;

@@ -5,6 +5,7 @@
 #include "core/model/primitive_pool.hpp"
 #include "sim_hal/ground_truth/ground_truth.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
+#include "sim_hal/sim_error.hpp"
 #include "test_meshes.hpp"
 
 using namespace vantage;
@@ -91,6 +92,82 @@ TEST_CASE("oracle update: EKF updates shrink sigma and augmentation adds new sur
   // A pool the oracle did not build is refused, nothing changes.
   CHECK(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(0.0, 30.0, 0.0)), g_other_pool, &report) ==
         Status::kInvalidArgument);
+}
+
+TEST_CASE("oracle track loss: K gated observations in a row erase a primitive and free its site", "[sim_hal][oracle]") {
+  const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
+  OracleConfig config;
+  config.site_count = 500;
+  config.max_gated_in_a_row = 3;
+  OracleMeasurementSource oracle(scene, config);
+  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+                               g_pool, &report)));
+  REQUIRE(g_pool.size() > 10);
+  const PrimitiveIndex lost = 0;
+  const PrimitiveIndex kept = 1;
+  REQUIRE(g_pool.is_alive(lost));
+  REQUIRE(g_pool.is_alive(kept));
+  const Eigen::Vector3d kept_truth = *oracle.true_point(kept);
+  // A confident estimate a unit off its true point: every observation fails the gate.
+  const Eigen::Vector3d lost_truth = *oracle.true_point(lost);
+  const auto spoil = [&](PrimitiveIndex i) {
+    g_pool[i].X_world = (i == lost ? lost_truth : kept_truth) + Eigen::Vector3d(0.0, 0.7, 0.7);
+    g_pool[i].Sigma_world = Eigen::Matrix3d::Identity() * 1e-4;
+  };
+  std::uint64_t erased = 0;
+  for (int n = 1; n < config.max_gated_in_a_row; ++n) {
+    spoil(lost);
+    spoil(kept);
+    REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+    erased += report.gated_erased;
+    REQUIRE(g_pool.is_alive(lost));
+    REQUIRE(g_pool.is_alive(kept));
+  }
+  // The K-th gated observation erases `lost`; `kept`, back at its true point, is accepted (count restarts).
+  spoil(lost);
+  g_pool[kept].X_world = kept_truth;
+  g_pool[kept].Sigma_world = Eigen::Matrix3d::Identity() * 1e-2;
+  REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+  erased += report.gated_erased;
+  CHECK(!g_pool.is_alive(lost));
+  CHECK(oracle.true_point(lost) == nullptr);
+  REQUIRE(g_pool.is_alive(kept));
+  CHECK(g_pool[kept].Sigma_world.trace() < 3e-2);
+  for (int n = 1; n < config.max_gated_in_a_row; ++n) {
+    spoil(kept);
+    REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+    erased += report.gated_erased;
+  }
+  CHECK(g_pool.is_alive(kept));
+  CHECK(erased >= 1u);
+  // The freed site is spawned again from the next pair that sees it with a baseline.
+  const std::size_t before = g_pool.size();
+  REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, -4.0, 0.0)), g_pool, &report)));
+  CHECK(report.spawned > 0u);
+  CHECK(g_pool.size() == before + report.spawned - report.gated_erased);
+  bool respawned = false;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    respawned = respawned || (g_pool.is_alive(i) && oracle.true_point(i) != nullptr && *oracle.true_point(i) == lost_truth);
+  }
+  CHECK(respawned);
+
+  // Off: never erased.
+  config.max_gated_in_a_row = 0;
+  OracleMeasurementSource never(scene, config);
+  g_pool.clear();
+  REQUIRE(ok(never.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+                              g_pool, &report)));
+  for (int n = 0; n < 4; ++n) {
+    spoil(lost);
+    REQUIRE(ok(never.update(GrayImageView{}, a, g_pool, &report)));
+    CHECK(report.gated_erased == 0u);
+  }
+  CHECK(g_pool.is_alive(lost));
+  config.max_gated_in_a_row = 256;
+  CHECK_THROWS_AS(OracleMeasurementSource(scene, config), SimError);
 }
 
 TEST_CASE("the oracle is deterministic for a seed", "[sim_hal][oracle]") {
