@@ -7,6 +7,7 @@
 #include <cstdint>
 
 #include "core/common/span.hpp"
+#include "core/frontend/match_kernel.hpp"
 #include "core/image/gray_image.hpp"
 #include "core/model/primitive.hpp"
 
@@ -67,6 +68,10 @@ constexpr std::int32_t ncc_box_out_stride(std::int32_t w) { return (w + 7) / 8 *
 // scratch is smaller than ncc_box_scratch_size(w, h).
 bool ncc_box(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x0, std::int32_t y0, std::int32_t w,
              std::int32_t h, Span<float> scratch, float* out);
+// The same with a chosen build of the inner loops (match_kernel.hpp); false, out untouched, also when the
+// kernel is not supported here (match_kernel_supported).
+bool ncc_box(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x0, std::int32_t y0, std::int32_t w,
+             std::int32_t h, Span<float> scratch, float* out, MatchKernel kernel);
 
 // Offset in [-0.5, 0.5] of the vertex of the parabola through (-1, left), (0, centre), (1, right);
 // 0 when the three points are not a strict maximum at the centre.

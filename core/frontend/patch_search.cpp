@@ -4,158 +4,42 @@
 #include <cstdlib>
 #include <limits>
 
-#include "core/frontend/float4.hpp"
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
 
 namespace {
 
+// The fit stops after a step shorter than this.
+constexpr double kSubpixelStopStepPx = 1e-3;
+
 // Subpixel refinement at an integer peak from its 4-neighbours' NCC.
 Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left, float right, float up, float down) {
   return Eigen::Vector2d(x + parabola_peak_offset(left, centre, right), y + parabola_peak_offset(up, centre, down));
 }
 
+// A kernel this CPU lacks falls back to the baseline (MatchConfig::kernel).
+MatchKernel resolved(MatchKernel kernel) { return match_kernel_supported(kernel) ? kernel : MatchKernel::kBaseline; }
+
 }  // namespace
 
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2) {
-  // Block of image values around the peak: the patch, +-1 px of shift, one more for the bilinear cell and
-  // one for the central-difference gradient.
-  constexpr int kMargin = 3;
-  constexpr int kBlock = kPatchSize + 2 * kMargin;
-  // Rows padded to whole lane groups with finite zeros: the lanes past the patch are computed and dropped.
-  constexpr int kBlockStride = 16;
-  constexpr int kLanes = 8;  // a patch row as two Float4, the eighth lane masked
-  constexpr int kResampled = kPatchSize + 2;  // the patch plus a one-pixel ring for the gradient
-  constexpr int kResampledStride = 12;
-  static_assert(kPatchSize <= kLanes && kResampled + 3 <= kResampledStride &&
-                    kMargin - 1 + kResampledStride + 1 <= kBlockStride,
-                "lane padding too small for the patch size");
-  if (!patch_inside(image, x, y, kMargin) || tmpl.valid_count < 8) return false;
-  Eigen::Vector2d d = *uv_px - Eigen::Vector2d(x, y);
-  if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0)) return false;
-  alignas(16) float block[kBlock][kBlockStride];
-  const std::int32_t block_x = x - kPatchRadius - kMargin;
-  for (int j = 0; j < kBlock; ++j) {
-    bytes_to_floats(image.pixels + (y - kPatchRadius - kMargin + j) * image.stride_bytes + block_x, kBlock,
-                    image.width_px - block_x, block[j], kBlockStride);
-  }
-  // The template in rows of 8 lanes (the template holds 0 at masked pixels; the eighth lane is masked).
-  alignas(16) float t8[kPatchSize][kLanes];
-  alignas(16) float m8[kPatchSize][kLanes];
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kLanes; ++tx) {
-      t8[ty][tx] = tx < kPatchSize ? tmpl.values[ty * kPatchSize + tx] : 0.0f;
-      m8[ty][tx] = tx < kPatchSize ? tmpl.mask[ty * kPatchSize + tx] : 0.0f;
-    }
-  }
-  // Template-only sums of J^T J (J = [gx, gy, -t, -1]) do not change between iterations; beta starts at
-  // the mean of the image patch.
-  Float4 sum_tt = splat4(0.0f);
-  Float4 sum_t = splat4(0.0f);
-  Float4 sum_image = splat4(0.0f);
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int lane = 0; lane < kLanes; lane += 4) {
-      const Float4 t = load4(&t8[ty][lane]);
-      sum_tt += t * t;
-      sum_t += t;
-      sum_image += load4(&m8[ty][lane]) * load4(&block[ty + kMargin][kMargin + lane]);
-    }
-  }
-  const double s_tt = sum_lanes(sum_tt);
-  const double s_t = sum_lanes(sum_t);
-  double beta = static_cast<double>(sum_lanes(sum_image)) / tmpl.valid_count;
-  const double s_1 = tmpl.valid_count;
-  double alpha = 1.0;
-  // The photometric block C = [[s_tt, s_t], [s_t, s_1]] of J^T J and its inverse (the 4x4 normal
-  // equations are solved by the Schur complement on the shift: same solution, 2x2 inverses only).
-  const double det_c = s_tt * s_1 - s_t * s_t;
-  if (!(det_c > 0.0)) return false;
-  Eigen::Matrix2d C_inv;
-  C_inv << s_1 / det_c, -s_t / det_c, -s_t / det_c, s_tt / det_c;
-  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
-  for (int iteration = 0; iteration < iterations; ++iteration) {
-    const int ix = static_cast<int>(std::floor(d.x()));
-    const int iy = static_cast<int>(std::floor(d.y()));
-    const float fx = static_cast<float>(d.x() - ix);
-    const float fy = static_cast<float>(d.y() - iy);
-    const Float4 w00 = splat4((1.0f - fx) * (1.0f - fy));
-    const Float4 w01 = splat4(fx * (1.0f - fy));
-    const Float4 w10 = splat4((1.0f - fx) * fy);
-    const Float4 w11 = splat4(fx * fy);
-    // The image resampled at the shifted patch and its ring: resampled[j][i] = I(patch (i - 1, j - 1) + d).
-    // Bilinear interpolation is linear and shift-invariant, so central differences of the resampled
-    // values equal the resampled central-difference gradients: one interpolation per pixel, not three.
-    alignas(16) float resampled[kResampled][kResampledStride];
-    for (int j = 0; j < kResampled; ++j) {
-      const float* r0 = &block[j + kMargin - 1 + iy][kMargin - 1 + ix];
-      const float* r1 = r0 + kBlockStride;
-      for (int i = 0; i < kResampledStride; i += 4) {
-        store4(&resampled[j][i],
-               w00 * load4(r0 + i) + w01 * load4(r0 + i + 1) + w10 * load4(r1 + i) + w11 * load4(r1 + i + 1));
-      }
-    }
-    // J^T J and J^T r as lane sums (r = I(p + d) - alpha * t - beta): this loop is the tracker's hot path.
-    const Float4 alpha4 = splat4(static_cast<float>(alpha));
-    const Float4 beta4 = splat4(static_cast<float>(beta));
-    const Float4 half = splat4(0.5f);
-    Float4 a_xx = splat4(0.0f), a_xy = a_xx, a_xt = a_xx, a_x = a_xx, a_yy = a_xx, a_yt = a_xx, a_y = a_xx;
-    Float4 b_x = a_xx, b_y = a_xx, b_t = a_xx, b_1 = a_xx, b_rr = a_xx;
-    for (int ty = 0; ty < kPatchSize; ++ty) {
-      for (int lane = 0; lane < kLanes; lane += 4) {
-        const float* row = &resampled[ty + 1][lane];
-        const Float4 m = load4(&m8[ty][lane]);
-        const Float4 t = load4(&t8[ty][lane]);
-        const Float4 gx = half * (load4(row + 2) - load4(row)) * m;
-        const Float4 gy = half * (load4(row + 1 + kResampledStride) - load4(row + 1 - kResampledStride)) * m;
-        const Float4 r = (load4(row + 1) - alpha4 * t - beta4) * m;
-        a_xx += gx * gx;
-        a_xy += gx * gy;
-        a_xt += gx * t;
-        a_x += gx;
-        a_yy += gy * gy;
-        a_yt += gy * t;
-        a_y += gy;
-        b_x += gx * r;
-        b_y += gy * r;
-        b_t += t * r;
-        b_1 += r;
-        b_rr += r * r;
-      }
-    }
-    // Normal equations [[A, B], [B^T, C]] (shift, photometric) step = -(g_a, g_c).
-    Eigen::Matrix2d A;
-    A << sum_lanes(a_xx), sum_lanes(a_xy), sum_lanes(a_xy), sum_lanes(a_yy);
-    Eigen::Matrix2d B;
-    B << -sum_lanes(a_xt), -sum_lanes(a_x), -sum_lanes(a_yt), -sum_lanes(a_y);
-    const Eigen::Vector2d g_a(sum_lanes(b_x), sum_lanes(b_y));
-    const Eigen::Vector2d g_c(-sum_lanes(b_t), -sum_lanes(b_1));
-    // Schur complement: its inverse is the shift block of (J^T J)^-1.
-    const Eigen::Matrix2d schur = A - B * C_inv * B.transpose();
-    const double det_s = schur(0, 0) * schur(1, 1) - schur(0, 1) * schur(1, 0);
-    if (!(det_s > 0.0) || !(schur(0, 0) > 0.0)) return false;
-    Eigen::Matrix2d schur_inv;
-    schur_inv << schur(1, 1) / det_s, -schur(0, 1) / det_s, -schur(1, 0) / det_s, schur(0, 0) / det_s;
-    const Eigen::Vector2d step_shift = -schur_inv * (g_a - B * (C_inv * g_c));
-    const Eigen::Vector2d step_photometric = -C_inv * (g_c + B.transpose() * step_shift);
-    if (!step_shift.allFinite() || !step_photometric.allFinite()) return false;
-    const bool last = iteration + 1 == iterations || step_shift.norm() < 1e-3;
-    if (last) {
-      // Least-squares covariance of the shift: residual variance (image noise plus what the model misses,
-      // 4 parameters fitted) times the shift block of (J^T J)^-1.
-      const double dof = s_1 - 4.0;
-      covariance = (dof > 0.0 ? static_cast<double>(sum_lanes(b_rr)) / dof : 0.0) * schur_inv;
-    }
-    d += step_shift;
-    alpha += step_photometric(0);
-    beta += step_photometric(1);
-    if (!(std::abs(d.x()) < 1.0 && std::abs(d.y()) < 1.0) || !(alpha > 0.0)) return false;
-    if (step_shift.norm() < 1e-3) break;
-  }
-  if (!covariance.allFinite()) return false;
-  *uv_px = Eigen::Vector2d(x, y) + d;
-  if (covariance_px2 != nullptr) *covariance_px2 = 0.5 * (covariance + covariance.transpose());
+  return refine_subpixel(image, tmpl, x, y, iterations, uv_px, covariance_px2, MatchKernel::kAuto);
+}
+
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel) {
+  // The kernel (match_kernel_impl.hpp) needs the patch, +-1 px of shift, the bilinear cell and the
+  // central-difference gradient inside the image: 3 px of margin.
+  if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8 || !match_kernel_supported(kernel)) return false;
+  match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0};
+  if (!(std::abs(fit.dx) < 1.0 && std::abs(fit.dy) < 1.0)) return false;
+  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+  const match_kernel::Template t{tmpl.values.data(), tmpl.mask.data(), tmpl.norm, tmpl.valid_count};
+  if (!match_kernel::functions(kernel).refine(view, t, x, y, iterations, kSubpixelStopStepPx, &fit)) return false;
+  *uv_px = Eigen::Vector2d(x + fit.dx, y + fit.dy);
+  if (covariance_px2 != nullptr) *covariance_px2 << fit.cov_xx, fit.cov_xy, fit.cov_xy, fit.cov_yy;
   return true;
 }
 
@@ -217,7 +101,8 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const std::int32_t n_stride = ncc_box_out_stride(n_w);
   float* ncc = inside + box_size;
   float* const rest = ncc + ncc_size;
-  if (!ncc_box(image, tmpl, n_x0, n_y0, n_w, n_h, Span<float>(rest, scratch.size() - box_size - ncc_size), ncc)) {
+  if (!ncc_box(image, tmpl, n_x0, n_y0, n_w, n_h, Span<float>(rest, scratch.size() - box_size - ncc_size), ncc,
+               resolved(config.kernel))) {
     return MatchOutcome::kNoRoom;
   }
   auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - n_y0) * n_stride + x - n_x0]; };
@@ -257,7 +142,7 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
-      !refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance)) {
+      !refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance, resolved(config.kernel))) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_px = uv;
@@ -368,7 +253,8 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   Eigen::Vector2d uv = refine(bx, by, best, left, right, up, down);
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
-      !refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance)) {
+      !refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance,
+                       resolved(config.kernel))) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_second_px = uv;

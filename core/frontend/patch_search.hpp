@@ -29,6 +29,8 @@ struct MatchConfig {
   float uniqueness_ratio = 0.95f;  // a second local maximum must stay below ratio * best
   // Gauss-Newton steps of the photometric refinement after the parabola fit (0: parabola only).
   int subpixel_iterations = 3;
+  // Build of the inner loops (match_kernel.hpp); one this CPU lacks falls back to the baseline.
+  MatchKernel kernel = MatchKernel::kAuto;
 };
 
 // Subpixel refinement of a match near integer peak (x, y): Gauss-Newton on I(p + d) = alpha * t + beta
@@ -40,6 +42,10 @@ struct MatchConfig {
 // the image.
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2);
+// The same with a chosen build of the inner loops; false, outputs untouched, also when the kernel is not
+// supported here (match_kernel_supported).
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel);
 
 // Tracking search: integer positions whose offset d from predicted_px has d^T S_inv d <= gate_chi2
 // (the 3-sigma ellipse for gate 9), inside a box of +-half_width x +-half_height pixels.

@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -232,25 +233,37 @@ TEST_CASE("the box NCC equals the single-centre NCC at every centre, masked temp
   REQUIRE(masked.valid_count < kPatchPixels);
   static std::array<float, ncc_box_scratch_size(w, h)> scratch{};
   static std::array<float, w * h> out{};
-  for (const NccTemplate* tmpl : {static_cast<const NccTemplate*>(&full), &masked}) {
-    // Boxes of 1 to 9 and 17 centres across (lane remainders), one reaching the image's right edge.
+  for (const MatchKernel kernel : {MatchKernel::kAuto, MatchKernel::kBaseline, MatchKernel::kAvx2Fma}) {
+   if (!match_kernel_supported(kernel)) continue;
+   INFO("kernel " << to_string(kernel));
+   for (const NccTemplate* tmpl : {static_cast<const NccTemplate*>(&full), &masked}) {
+    // Boxes of 1 to 9 and 17 centres across (lane remainders), one reaching the image's right edge, 1 to
+    // 9 rows (a plane row feeds up to 7 centre rows).
     for (const std::int32_t box_w : {1, 3, 7, 8, 9, 17, w - 2 * kPatchRadius}) {
+     for (const std::int32_t box_h : {1, 5, 9}) {
       const std::int32_t x0 = w - kPatchRadius - box_w;
       const std::int32_t y0 = kPatchRadius + 1;
-      const std::int32_t box_h = 5;
       bool done = false;
       REQUIRE_NO_ALLOCATION(done = ncc_box(image, *tmpl, x0, y0, box_w, box_h,
-                                           Span<float>(scratch.data(), scratch.size()), out.data()));
+                                           Span<float>(scratch.data(), scratch.size()), out.data(), kernel));
       REQUIRE(done);
       for (std::int32_t y = 0; y < box_h; ++y) {
         for (std::int32_t x = 0; x < box_w; ++x) {
           CHECK(out[y * ncc_box_out_stride(box_w) + x] == Approx(ncc_at(image, x0 + x, y0 + y, *tmpl)).margin(2e-6));
         }
       }
+     }
     }
+   }
   }
   CHECK_FALSE(ncc_box(image, full, 10, 10, 8, 8, Span<float>(scratch.data(), ncc_box_scratch_size(8, 8) - 1),
                       out.data()));
+  // A build this CPU lacks is refused, not run.
+  if (!match_kernel_supported(MatchKernel::kAvx2Fma)) {
+    CHECK_FALSE(ncc_box(image, full, 10, 10, 8, 8, Span<float>(scratch.data(), scratch.size()), out.data(),
+                        MatchKernel::kAvx2Fma));
+  }
+  CHECK(std::string(to_string(MatchKernel::kBaseline)) != to_string(MatchKernel::kAvx2Fma));
   // A flat template correlates at -1 everywhere, as with ncc_at.
   std::array<std::uint8_t, kPatchPixels> constant{};
   constant.fill(90);
@@ -285,13 +298,19 @@ TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit
         Eigen::Matrix2d fast_cov;
         Eigen::Matrix2d plain_cov;
         bool fast_ok = false;
-        REQUIRE_NO_ALLOCATION(fast_ok = refine_subpixel(moved_view, *tmpl, x, y, 3, &fast, &fast_cov));
         const bool plain_ok = reference_subpixel(moved_view, *tmpl, x, y, 3, &plain, &plain_cov);
-        REQUIRE(fast_ok == plain_ok);
-        if (!fast_ok) continue;
-        ++compared;
-        CHECK((fast - plain).norm() < 1e-4);
-        CHECK((fast_cov - plain_cov).norm() < 1e-3 * plain_cov.norm());
+        // Every build of the inner loops (baseline, AVX2 + FMA where the CPU has it) against the reference.
+        for (const MatchKernel kernel : {MatchKernel::kBaseline, MatchKernel::kAvx2Fma}) {
+          if (!match_kernel_supported(kernel)) continue;
+          INFO("kernel " << to_string(kernel));
+          fast = start;
+          REQUIRE_NO_ALLOCATION(fast_ok = refine_subpixel(moved_view, *tmpl, x, y, 3, &fast, &fast_cov, kernel));
+          REQUIRE(fast_ok == plain_ok);
+          if (!fast_ok) continue;
+          ++compared;
+          CHECK((fast - plain).norm() < 1e-4);
+          CHECK((fast_cov - plain_cov).norm() < 1e-3 * plain_cov.norm());
+        }
       }
     }
   }

@@ -1,0 +1,99 @@
+#pragma once
+// The matcher's inner loops, internal to core/frontend (see README.md, "Speed"): the box NCC and the
+// photometric subpixel fit. Written once (match_kernel_impl.hpp) with GCC/Clang vector extensions and
+// built twice, as core/criterion does: for the baseline ISA (match_kernel.cpp: SSE2 on x86-64, NEON on
+// aarch64) and, on x86-64 only, with AVX2 + FMA (match_kernel_avx2.cpp), chosen at run time. This header
+// is self-contained on purpose (plain pointers and numbers, no Eigen, no inline functions): the AVX2
+// translation unit must not instantiate any inline function that baseline code also uses, or the linker
+// could hand the AVX2 copy to a baseline caller.
+#include <cstdint>
+
+namespace vantage {
+
+// Which build of the matcher's inner loops runs (ncc_box, refine_subpixel, search_window): kAuto picks
+// AVX2 + FMA when the CPU has both, else the baseline. The builds agree up to float rounding.
+enum class MatchKernel : std::uint8_t {
+  kAuto = 0,
+  kBaseline,  // SSE2 on x86-64, NEON on aarch64
+  kAvx2Fma,   // x86-64 with AVX2 and FMA only
+};
+
+const char* to_string(MatchKernel kernel);
+// True for kAuto and kBaseline; for kAvx2Fma when this build and this CPU have it.
+bool match_kernel_supported(MatchKernel kernel);
+
+namespace match_kernel {
+
+inline constexpr int kSize = 7;  // the patch side (kPatchSize, checked in ncc.cpp)
+inline constexpr int kPixels = kSize * kSize;
+
+struct Image {
+  const std::uint8_t* pixels;
+  std::int32_t width_px;
+  std::int32_t height_px;
+  std::int32_t stride_bytes;
+};
+
+// A zero-mean template (values 0 where masked, mask 0 or 1), kPixels each, row-major.
+struct Template {
+  const float* values;
+  const float* mask;
+  float norm;                // sqrt(sum values^2), > 0
+  std::int32_t valid_count;  // >= 2
+};
+
+// NCC box: centres [x0, x0 + w) x [y0, y0 + h), every centre's patch inside the image; plane_stride and
+// out_stride as ncc_box_plane_stride(w) and ncc_box_out_stride(w) (ncc.hpp); scratch holds
+// ncc_box_scratch_size(w, h) floats.
+struct Box {
+  std::int32_t x0;
+  std::int32_t y0;
+  std::int32_t w;
+  std::int32_t h;
+  std::int32_t plane_stride;
+  std::int32_t out_stride;
+};
+
+// Photometric fit around integer peak (x, y) (block of +-3 px of margin inside the image, valid_count
+// >= 8): in, dx and dy the start offset from (x, y); out, the converged offset and the shift covariance.
+struct Fit {
+  double dx;
+  double dy;
+  double cov_xx;
+  double cov_xy;
+  double cov_yy;
+};
+
+using NccBoxFunction = void (*)(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);
+// Gauss-Newton steps up to `iterations`, stopping after a step shorter than stop_step_px. False when it
+// does not converge within one pixel of (x, y), the normal equations are singular or the result is not finite.
+using FitFunction = bool (*)(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
+                             double stop_step_px, Fit* fit);
+
+struct Functions {
+  NccBoxFunction ncc_box;
+  FitFunction refine;
+};
+
+// The functions of a kernel (kAuto resolved, an unsupported one falls back to the baseline).
+Functions functions(MatchKernel kernel);
+
+namespace baseline {
+void ncc_box(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);
+bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
+            double stop_step_px, Fit* fit);
+}  // namespace baseline
+
+#if defined(__x86_64__)
+#define VANTAGE_MATCH_HAS_AVX2_KERNEL 1
+namespace avx2_fma {
+void ncc_box(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);
+bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
+            double stop_step_px, Fit* fit);
+}  // namespace avx2_fma
+#else
+#define VANTAGE_MATCH_HAS_AVX2_KERNEL 0
+#endif
+
+}  // namespace match_kernel
+}  // namespace vantage
