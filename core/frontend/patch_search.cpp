@@ -10,8 +10,8 @@ namespace vantage {
 
 namespace {
 
-// The fit stops after a step shorter than this.
-constexpr double kSubpixelStopStepPx = 1e-3;
+// refine_subpixel's stop: a step shorter than this (the searches take MatchConfig::subpixel_stop_step_px).
+constexpr double kRefineStopStepPx = 1e-3;
 
 // Subpixel refinement at an integer peak from its 4-neighbours' NCC.
 Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left, float right, float up, float down) {
@@ -20,6 +20,21 @@ Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left,
 
 // A kernel this CPU lacks falls back to the baseline (MatchConfig::kernel).
 MatchKernel resolved(MatchKernel kernel) { return match_kernel_supported(kernel) ? kernel : MatchKernel::kBaseline; }
+
+bool refine_with(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y, int iterations,
+                 double stop_step_px, MatchKernel kernel, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2) {
+  // The kernel (match_kernel_impl.hpp) needs the patch, +-1 px of shift, the bilinear cell and the
+  // central-difference gradient inside the image: 3 px of margin.
+  if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8 || !match_kernel_supported(kernel)) return false;
+  match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0};
+  if (!(std::abs(fit.dx) < 1.0 && std::abs(fit.dy) < 1.0)) return false;
+  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+  const match_kernel::Template t{tmpl.values.data(), tmpl.mask.data(), tmpl.norm, tmpl.valid_count};
+  if (!match_kernel::functions(kernel).refine(view, t, x, y, iterations, stop_step_px, &fit)) return false;
+  *uv_px = Eigen::Vector2d(x + fit.dx, y + fit.dy);
+  if (covariance_px2 != nullptr) *covariance_px2 << fit.cov_xx, fit.cov_xy, fit.cov_xy, fit.cov_yy;
+  return true;
+}
 
 }  // namespace
 
@@ -30,17 +45,7 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
 
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel) {
-  // The kernel (match_kernel_impl.hpp) needs the patch, +-1 px of shift, the bilinear cell and the
-  // central-difference gradient inside the image: 3 px of margin.
-  if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8 || !match_kernel_supported(kernel)) return false;
-  match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0};
-  if (!(std::abs(fit.dx) < 1.0 && std::abs(fit.dy) < 1.0)) return false;
-  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
-  const match_kernel::Template t{tmpl.values.data(), tmpl.mask.data(), tmpl.norm, tmpl.valid_count};
-  if (!match_kernel::functions(kernel).refine(view, t, x, y, iterations, kSubpixelStopStepPx, &fit)) return false;
-  *uv_px = Eigen::Vector2d(x + fit.dx, y + fit.dy);
-  if (covariance_px2 != nullptr) *covariance_px2 << fit.cov_xx, fit.cov_xy, fit.cov_xy, fit.cov_yy;
-  return true;
+  return refine_with(image, tmpl, x, y, iterations, kRefineStopStepPx, kernel, uv_px, covariance_px2);
 }
 
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
@@ -142,7 +147,8 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
-      !refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance, resolved(config.kernel))) {
+      !refine_with(image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px,
+                   resolved(config.kernel), &uv, &covariance)) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_px = uv;
@@ -253,8 +259,8 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   Eigen::Vector2d uv = refine(bx, by, best, left, right, up, down);
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
-      !refine_subpixel(second_image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance,
-                       resolved(config.kernel))) {
+      !refine_with(second_image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px,
+                   resolved(config.kernel), &uv, &covariance)) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_second_px = uv;

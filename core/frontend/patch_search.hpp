@@ -29,6 +29,8 @@ struct MatchConfig {
   float uniqueness_ratio = 0.95f;  // a second local maximum must stay below ratio * best
   // Gauss-Newton steps of the photometric refinement after the parabola fit (0: parabola only).
   int subpixel_iterations = 3;
+  // The fit stops after a step shorter than this (pixels).
+  double subpixel_stop_step_px = 1e-2;
   // Build of the inner loops (match_kernel.hpp); one this CPU lacks falls back to the baseline.
   MatchKernel kernel = MatchKernel::kAuto;
 };
