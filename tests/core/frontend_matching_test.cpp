@@ -447,3 +447,119 @@ TEST_CASE("an epipolar search within the depth range finds the true corresponden
   CHECK(matched > 0.8 * tried);
   CHECK(std::sqrt(sum_sq / matched) < 0.15);
 }
+
+namespace {
+
+// The window search written plainly: the gate test at every pixel of the box, ncc_at at every
+// candidate and neighbour, the same peak, uniqueness and refinement rules. search_window finds the gated
+// rows' intervals from the ellipse's roots and correlates a box at once; both must agree.
+MatchOutcome reference_window_search(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
+                                     const MatchConfig& config, Eigen::Vector2d* uv_px, float* best_ncc) {
+  const std::int32_t cx = static_cast<std::int32_t>(std::lround(query.predicted_px.x()));
+  const std::int32_t cy = static_cast<std::int32_t>(std::lround(query.predicted_px.y()));
+  const std::int32_t x0 = std::max(cx - query.half_width_px - 1, kPatchRadius);
+  const std::int32_t x1 = std::min(cx + query.half_width_px + 1, image.width_px - 1 - kPatchRadius);
+  const std::int32_t y0 = std::max(cy - query.half_height_px - 1, kPatchRadius);
+  const std::int32_t y1 = std::min(cy + query.half_height_px + 1, image.height_px - 1 - kPatchRadius);
+  auto inside = [&](std::int32_t x, std::int32_t y) {
+    if (x <= x0 || x >= x1 || y <= y0 || y >= y1) return false;
+    const Eigen::Vector2d d(x - query.predicted_px.x(), y - query.predicted_px.y());
+    const Eigen::Matrix2d& S = query.S_inv;
+    return (x == cx && y == cy) ||
+           d.x() * (S(0, 0) * d.x() + S(0, 1) * d.y()) + d.y() * (S(1, 0) * d.x() + S(1, 1) * d.y()) <= query.gate_chi2;
+  };
+  auto local_max = [&](std::int32_t x, std::int32_t y) {
+    const float centre = ncc_at(image, x, y, tmpl);
+    for (std::int32_t dy = -1; dy <= 1; ++dy) {
+      for (std::int32_t dx = -1; dx <= 1; ++dx) {
+        if ((dx != 0 || dy != 0) && ncc_at(image, x + dx, y + dy, tmpl) > centre) return false;
+      }
+    }
+    return true;
+  };
+  float best = -2.0f;
+  std::int32_t bx = 0;
+  std::int32_t by = 0;
+  for (std::int32_t y = y0 + 1; y < y1; ++y) {
+    for (std::int32_t x = x0 + 1; x < x1; ++x) {
+      if (inside(x, y) && ncc_at(image, x, y, tmpl) > best && local_max(x, y)) {
+        best = ncc_at(image, x, y, tmpl);
+        bx = x;
+        by = y;
+      }
+    }
+  }
+  *best_ncc = best;
+  if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
+  for (std::int32_t y = y0 + 1; y < y1; ++y) {
+    for (std::int32_t x = x0 + 1; x < x1; ++x) {
+      if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
+      if (inside(x, y) && ncc_at(image, x, y, tmpl) >= config.uniqueness_ratio * best && local_max(x, y)) {
+        return MatchOutcome::kAmbiguous;
+      }
+    }
+  }
+  Eigen::Vector2d uv(bx + parabola_peak_offset(ncc_at(image, bx - 1, by, tmpl), best, ncc_at(image, bx + 1, by, tmpl)),
+                     by + parabola_peak_offset(ncc_at(image, bx, by - 1, tmpl), best, ncc_at(image, bx, by + 1, tmpl)));
+  Eigen::Matrix2d covariance;
+  if (!refine_subpixel(image, tmpl, bx, by, config.subpixel_iterations, &uv, &covariance)) {
+    return MatchOutcome::kNoSubpixel;
+  }
+  *uv_px = uv;
+  return MatchOutcome::kMatched;
+}
+
+}  // namespace
+
+TEST_CASE("the window search agrees with the plain per-pixel search: gate, peak, uniqueness, refinement") {
+  const std::int32_t w = 80;
+  const std::int32_t h = 60;
+  NoiseSource noise;
+  const auto reference = noisy_image(w, h, 0.0, 0.0, 3.0, 1.0, 0.0, 1.0, noise);
+  const auto moved = noisy_image(w, h, 0.6, -0.4, 3.0, 1.0, 0.0, 1.0, noise);
+  const GrayImageView ref_view{reference.data(), w, h, w};
+  const GrayImageView moved_view{moved.data(), w, h, w};
+  static std::array<float, window_scratch_size(6)> scratch{};
+  MatchConfig config;
+  config.subpixel_stop_step_px = 1e-3;  // refine_subpixel's stop, which the plain search calls
+  int compared = 0;
+  int matched = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    // Prediction anywhere (image borders included), ellipses from tiny to wide, tilted, half sizes 1-6.
+    const std::int32_t x = 4 + static_cast<std::int32_t>(noise.uniform() * (w - 8));
+    const std::int32_t y = 4 + static_cast<std::int32_t>(noise.uniform() * (h - 8));
+    std::array<std::uint8_t, kPatchPixels> patch{};
+    extract_patch(ref_view, std::clamp(x, kPatchRadius, w - 1 - kPatchRadius),
+                  std::clamp(y, kPatchRadius, h - 1 - kPatchRadius), &patch);
+    NccTemplate tmpl;
+    make_template(patch, &tmpl);
+    const double sx = 0.05 + 2.0 * noise.uniform();
+    const double sy = 0.05 + 2.0 * noise.uniform();
+    const double rho = 1.8 * noise.uniform() - 0.9;
+    Eigen::Matrix2d S;
+    S << sx * sx, rho * sx * sy, rho * sx * sy, sy * sy;
+    WindowQuery query;
+    query.predicted_px = Eigen::Vector2d(x + noise.uniform() - 0.5 + 0.6, y + noise.uniform() - 0.5 - 0.4);
+    query.S_inv = S.inverse();
+    query.half_width_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sx)), 1, 6);
+    query.half_height_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sy)), 1, 6);
+    Eigen::Vector2d fast(0, 0);
+    Eigen::Vector2d plain(0, 0);
+    float fast_best = 0.0f;
+    float plain_best = 0.0f;
+    const MatchOutcome fast_outcome =
+        search_window(moved_view, tmpl, query, config, Span<float>(scratch.data(), scratch.size()), &fast, &fast_best);
+    if (fast_outcome == MatchOutcome::kNoRoom) continue;
+    const MatchOutcome plain_outcome = reference_window_search(moved_view, tmpl, query, config, &plain, &plain_best);
+    INFO("trial " << trial << " at " << query.predicted_px.transpose());
+    ++compared;
+    CHECK(fast_outcome == plain_outcome);
+    CHECK(fast_best == Approx(plain_best).margin(1e-5));
+    if (fast_outcome == MatchOutcome::kMatched && plain_outcome == MatchOutcome::kMatched) {
+      ++matched;
+      CHECK((fast - plain).norm() < 1e-4);
+    }
+  }
+  CHECK(compared > 300);
+  CHECK(matched > 50);
+}
