@@ -157,6 +157,7 @@ void ncc_box(const Image& image, const Template& tmpl, const Box& box, float* sc
   }
   // The template broadcast to lanes, once per box.
   vf t_lanes[kPixels];
+#pragma GCC unroll 49
   for (int k = 0; k < kPixels; ++k) t_lanes[k] = splat(tmpl.values[k]);
   // Dot products plane row by plane row: a row's seven shifted vectors are loaded once and serve its row
   // sums and every centre row whose patch holds it (up to seven); the centre rows accumulate in `out`.
