@@ -28,7 +28,7 @@ typedef std::uint8_t vb __attribute__((vector_size(kWidth)));
 // The NCC box computes centres in groups of 8 (ncc_box_out_stride), the fit a patch row as 8 lanes.
 constexpr int kGroup = 8;
 constexpr int kVecs = kGroup / kWidth;
-static_assert(kSize < kGroup, "a patch row must fit one group of 8 lanes");
+static_assert(kSize + 1 == kGroup, "a patch row is one group of 8 lanes with one spare lane");
 
 VANTAGE_MATCH_INLINE vf load(const float* p) {
   vf v;
@@ -266,12 +266,23 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   // The template in rows of 8 lanes (0 at masked pixels; the eighth lane is masked).
   float t8[kSize][kGroup];
   float m8[kSize][kGroup];
+#if defined(__AVX__)
+  // A row is one vector: 8 values from the row's start with the eighth lane zeroed; the last row loads
+  // from one value earlier and shifts down (no read past the template's 49 values).
+  for (int ty = 0; ty + 1 < kSize; ++ty) {
+    store(t8[ty], __builtin_shufflevector(load(tmpl.values + ty * kSize), vf{}, 0, 1, 2, 3, 4, 5, 6, 8));
+    store(m8[ty], __builtin_shufflevector(load(tmpl.mask + ty * kSize), vf{}, 0, 1, 2, 3, 4, 5, 6, 8));
+  }
+  store(t8[kSize - 1], __builtin_shufflevector(load(tmpl.values + kPixels - kGroup), vf{}, 1, 2, 3, 4, 5, 6, 7, 8));
+  store(m8[kSize - 1], __builtin_shufflevector(load(tmpl.mask + kPixels - kGroup), vf{}, 1, 2, 3, 4, 5, 6, 7, 8));
+#else
   for (int ty = 0; ty < kSize; ++ty) {
     for (int tx = 0; tx < kGroup; ++tx) {
       t8[ty][tx] = tx < kSize ? tmpl.values[ty * kSize + tx] : 0.0f;
       m8[ty][tx] = tx < kSize ? tmpl.mask[ty * kSize + tx] : 0.0f;
     }
   }
+#endif
   // Template-only sums of J^T J (J = [gx, gy, -t, -1]) do not change between iterations; beta starts at
   // the mean of the image patch.
   vf sum_tt = vf{};

@@ -82,13 +82,23 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   std::int32_t in_x1 = x0;
   std::int32_t in_y0 = y1;
   std::int32_t in_y1 = y0;
+  // The gate test first, a plain arithmetic loop the compiler vectorizes, then the rectangle.
+  const double px = query.predicted_px.x();
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
     const double dy = y - query.predicted_px.y();
+    const double b_dy = b * dy;
+    const double e_dy = e * dy;
+    float* row = inside + (y - y0) * w;
     for (std::int32_t x = x0 + 1; x < x1; ++x) {
-      const double dx = x - query.predicted_px.x();
-      const bool in = (x == cx && y == cy) || dx * (a * dx + b * dy) + dy * (c * dx + e * dy) <= query.gate_chi2;
-      inside[(y - y0) * w + x - x0] = in ? 1.0f : 0.0f;
-      if (!in) continue;
+      const double dx = static_cast<double>(x) - px;
+      row[x - x0] = dx * (a * dx + b_dy) + dy * (c * dx + e_dy) <= query.gate_chi2 ? 1.0f : 0.0f;
+    }
+  }
+  if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[(cy - y0) * w + cx - x0] = 1.0f;
+  for (std::int32_t y = y0 + 1; y < y1; ++y) {
+    const float* row = inside + (y - y0) * w;
+    for (std::int32_t x = x0 + 1; x < x1; ++x) {
+      if (row[x - x0] == 0.0f) continue;
       in_x0 = x < in_x0 ? x : in_x0;
       in_x1 = x > in_x1 ? x : in_x1;
       in_y0 = y < in_y0 ? y : in_y0;
