@@ -75,7 +75,7 @@ struct Functions {
   FitFunction refine;
 };
 
-// The functions of a kernel (kAuto resolved, an unsupported one falls back to the baseline).
+// The functions of a kernel (kAuto resolved, an unsupported one falls back to the baseline); ncc.cpp.
 Functions functions(MatchKernel kernel);
 
 namespace baseline {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/criterion/criterion_model.hpp"
 #include "core/frontend/float4.hpp"
 
 namespace vantage {
@@ -163,5 +164,48 @@ double parabola_peak_offset(double left, double centre, double right) {
   const double offset = 0.5 * (left - right) / curvature;
   return offset > 0.5 ? 0.5 : (offset < -0.5 ? -0.5 : offset);
 }
+
+// Choice of the matcher's kernel build (match_kernel.hpp).
+namespace {
+
+// The criterion's kernels are the same two builds (baseline ISA, AVX2 + FMA): its names and its CPU
+// check serve here too.
+CriterionKernel as_criterion_kernel(MatchKernel kernel) {
+  switch (kernel) {
+    case MatchKernel::kAuto:
+      return CriterionKernel::kAuto;
+    case MatchKernel::kBaseline:
+      return CriterionKernel::kBaseline;
+    case MatchKernel::kAvx2Fma:
+      return CriterionKernel::kAvx2Fma;
+  }
+  return CriterionKernel::kBaseline;
+}
+
+}  // namespace
+
+const char* to_string(MatchKernel kernel) { return to_string(as_criterion_kernel(kernel)); }
+
+bool match_kernel_supported(MatchKernel kernel) {
+  // libgcc's CPU model (it also checks that the OS saves the AVX registers): a load and a bit test once
+  // initialized, so it is asked on every search instead of cached in mutable state.
+  return (kernel != MatchKernel::kAvx2Fma || VANTAGE_MATCH_HAS_AVX2_KERNEL) &&
+         criterion_kernel_supported(as_criterion_kernel(kernel));
+}
+
+namespace match_kernel {
+
+Functions functions(MatchKernel kernel) {
+#if VANTAGE_MATCH_HAS_AVX2_KERNEL
+  if ((kernel == MatchKernel::kAuto || kernel == MatchKernel::kAvx2Fma) &&
+      match_kernel_supported(MatchKernel::kAvx2Fma)) {
+    return {avx2_fma::ncc_box, avx2_fma::refine};
+  }
+#endif
+  (void)kernel;
+  return {baseline::ncc_box, baseline::refine};
+}
+
+}  // namespace match_kernel
 
 }  // namespace vantage
