@@ -233,28 +233,30 @@ TEST_CASE("the box NCC equals the single-centre NCC at every centre, masked temp
   REQUIRE(masked.valid_count < kPatchPixels);
   static std::array<float, ncc_box_scratch_size(w, h)> scratch{};
   static std::array<float, w * h> out{};
-  for (const MatchKernel kernel : {MatchKernel::kAuto, MatchKernel::kBaseline, MatchKernel::kAvx2Fma}) {
-   if (!match_kernel_supported(kernel)) continue;
-   INFO("kernel " << to_string(kernel));
-   for (const NccTemplate* tmpl : {static_cast<const NccTemplate*>(&full), &masked}) {
-    // Boxes of 1 to 9 and 17 centres across (lane remainders), one reaching the image's right edge, 1 to
-    // 9 rows (a plane row feeds up to 7 centre rows).
-    for (const std::int32_t box_w : {1, 3, 7, 8, 9, 17, w - 2 * kPatchRadius}) {
-     for (const std::int32_t box_h : {1, 5, 9}) {
-      const std::int32_t x0 = w - kPatchRadius - box_w;
-      const std::int32_t y0 = kPatchRadius + 1;
-      bool done = false;
-      REQUIRE_NO_ALLOCATION(done = ncc_box(image, *tmpl, x0, y0, box_w, box_h,
-                                           Span<float>(scratch.data(), scratch.size()), out.data(), kernel));
-      REQUIRE(done);
-      for (std::int32_t y = 0; y < box_h; ++y) {
-        for (std::int32_t x = 0; x < box_w; ++x) {
-          CHECK(out[y * ncc_box_out_stride(box_w) + x] == Approx(ncc_at(image, x0 + x, y0 + y, *tmpl)).margin(2e-6));
-        }
+  // Every build (baseline, AVX2 + FMA where the CPU has it), both templates, boxes of 1 to 9 and 17
+  // centres across (lane remainders), one reaching the image's right edge, 1 to 9 rows (a plane row
+  // feeds up to 7 centre rows).
+  auto check_box = [&](MatchKernel kernel, const NccTemplate& tmpl, std::int32_t box_w, std::int32_t box_h) {
+    INFO("kernel " << to_string(kernel) << ", box " << box_w << " x " << box_h << ", valid " << tmpl.valid_count);
+    const std::int32_t x0 = w - kPatchRadius - box_w;
+    const std::int32_t y0 = kPatchRadius + 1;
+    bool done = false;
+    REQUIRE_NO_ALLOCATION(done = ncc_box(image, tmpl, x0, y0, box_w, box_h,
+                                         Span<float>(scratch.data(), scratch.size()), out.data(), kernel));
+    REQUIRE(done);
+    for (std::int32_t y = 0; y < box_h; ++y) {
+      for (std::int32_t x = 0; x < box_w; ++x) {
+        CHECK(out[y * ncc_box_out_stride(box_w) + x] == Approx(ncc_at(image, x0 + x, y0 + y, tmpl)).margin(2e-6));
       }
-     }
     }
-   }
+  };
+  for (const MatchKernel kernel : {MatchKernel::kAuto, MatchKernel::kBaseline, MatchKernel::kAvx2Fma}) {
+    if (!match_kernel_supported(kernel)) continue;
+    for (const NccTemplate* tmpl : {static_cast<const NccTemplate*>(&full), &masked}) {
+      for (const std::int32_t box_w : {1, 3, 7, 8, 9, 17, w - 2 * kPatchRadius}) {
+        for (const std::int32_t box_h : {1, 5, 9}) check_box(kernel, *tmpl, box_w, box_h);
+      }
+    }
   }
   CHECK_FALSE(ncc_box(image, full, 10, 10, 8, 8, Span<float>(scratch.data(), ncc_box_scratch_size(8, 8) - 1),
                       out.data()));
