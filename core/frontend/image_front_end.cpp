@@ -285,9 +285,14 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     NccTemplate tmpl;
     Viewpoint creating;
     Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
+    std::array<Eigen::Matrix2d, 2> dA;
     const bool have_creating = ok(view_pose(p.creating_view, &creating));
     if (have_creating) {
-      if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
+      // The map and its tilt derivatives from the creating view's Jacobian and this view's (H).
+      Eigen::Vector2d in_creating;
+      Eigen::Matrix<double, 2, 3> H_creating;
+      if (!ok(project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating)) ||
+          !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         p.flags |= primitive_flags::kLostTrack;
         count_rejection(i, centre_cell, pool, report);
@@ -304,10 +309,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
-    std::array<Eigen::Matrix2d, 2> dA;
-    if (config_.model_normal_uncertainty && have_creating &&
-        ok(plane_affine_tilt_derivatives(p.X_world, p.normal_world, creating, view, intrinsics_, A, &dA))) {
-      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
+    if (config_.model_normal_uncertainty && have_creating) {
+      TemplateGradientMoments moments;
+      template_gradient_moments(tmpl, &moments);
+      warp_covariance = warp_shift_covariance(moments, A, dA, normal_tilt_variance(i));
     }
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;

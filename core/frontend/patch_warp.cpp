@@ -1,15 +1,21 @@
 #include "core/frontend/patch_warp.hpp"
 
 #include <cmath>
+#include <cstring>
+
+#include "core/frontend/float4.hpp"
 
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
 
-Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
-                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
-  const Eigen::Vector3d n = normal_world.cast<double>();
-  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
+Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, const Eigen::Matrix<double, 2, 3>& H_target,
+                                   const Eigen::Vector3f& normal_world, Eigen::Matrix2d* A_ref_per_target,
+                                   std::array<Eigen::Matrix2d, 2>* dA) {
+  const Eigen::Vector3d n_raw = normal_world.cast<double>();
+  const double length = n_raw.norm();
+  if (!std::isfinite(length) || std::abs(length - 1.0) > 1e-3) return Status::kInvalidArgument;
+  const Eigen::Vector3d n = n_raw / length;
   // Any orthonormal basis of the plane.
   const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
   const Eigen::Vector3d e1 = n.cross(helper).normalized();
@@ -17,6 +23,27 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   Eigen::Matrix<double, 3, 2> basis;
   basis.col(0) = e1;
   basis.col(1) = e2;
+  const Eigen::Matrix2d J_ref = H_ref * basis;        // pixels in the reference per unit on the plane
+  const Eigen::Matrix2d J_target = H_target * basis;  // pixels in the target per unit on the plane
+  const double det = J_target.determinant();
+  // Edge-on: the plane's image in the target has (almost) no area.
+  if (!(std::abs(det) > 1e-9 * J_target.squaredNorm())) return Status::kInvalidArgument;
+  const Eigen::Matrix2d J_target_inv = J_target.inverse();
+  const Eigen::Matrix2d A = J_ref * J_target_inv;
+  if (!A.allFinite()) return Status::kInvalidArgument;
+  *A_ref_per_target = A;
+  if (dA != nullptr) {
+    const Eigen::Vector2d w = H_ref * n - A * (H_target * n);
+    (*dA)[0] = -w * J_target_inv.row(0);
+    (*dA)[1] = -w * J_target_inv.row(1);
+  }
+  return Status::kOk;
+}
+
+Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
+                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
+  const Eigen::Vector3d n = normal_world.cast<double>();
+  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H_ref;
   Eigen::Matrix<double, 2, 3> H_target;
@@ -24,13 +51,7 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   if (!ok(status)) return status;
   status = project_with_jacobian(X_world, target, intrinsics, &unused, &H_target);
   if (!ok(status)) return status;
-  const Eigen::Matrix2d J_ref = H_ref * basis;        // pixels in the reference per unit on the plane
-  const Eigen::Matrix2d J_target = H_target * basis;  // pixels in the target per unit on the plane
-  const double det = J_target.determinant();
-  // Edge-on: the plane's image in the target has (almost) no area.
-  if (!(std::abs(det) > 1e-9 * J_target.squaredNorm())) return Status::kInvalidArgument;
-  *A_ref_per_target = J_ref * J_target.inverse();
-  return A_ref_per_target->allFinite() ? Status::kOk : Status::kInvalidArgument;
+  return plane_affine_from_jacobians(H_ref, H_target, normal_world, A_ref_per_target, nullptr);
 }
 
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
@@ -64,63 +85,157 @@ Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen
                                      const Viewpoint& reference, const Viewpoint& target,
                                      const PinholeIntrinsics& intrinsics, const Eigen::Matrix2d& A_ref_per_target,
                                      std::array<Eigen::Matrix2d, 2>* dA) {
-  const Eigen::Vector3d n = normal_world.cast<double>().normalized();
+  (void)A_ref_per_target;  // recomputed with the Jacobians: the same map
+  const Eigen::Vector3f n = normal_world.normalized();
   if (!n.allFinite()) return Status::kInvalidArgument;
-  const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d axes[2] = {n.cross(helper).normalized(), n.cross(n.cross(helper).normalized())};
-  constexpr double kStep = 1e-3;  // rad; float normals resolve ~1e-7
-  for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3f tilted = (n + kStep * axes[k]).normalized().cast<float>();
-    Eigen::Matrix2d A_tilted;
-    const Status status = plane_affine(X_world, tilted, reference, target, intrinsics, &A_tilted);
-    if (!ok(status)) return status;
-    (*dA)[static_cast<std::size_t>(k)] = (A_tilted - A_ref_per_target) / kStep;
+  Eigen::Vector2d unused;
+  Eigen::Matrix<double, 2, 3> H_ref;
+  Eigen::Matrix<double, 2, 3> H_target;
+  Status status = project_with_jacobian(X_world, reference, intrinsics, &unused, &H_ref);
+  if (!ok(status)) return status;
+  status = project_with_jacobian(X_world, target, intrinsics, &unused, &H_target);
+  if (!ok(status)) return status;
+  Eigen::Matrix2d A;
+  return plane_affine_from_jacobians(H_ref, H_target, n, &A, dA);
+}
+
+namespace {
+
+// The moments from the lane sums of g g^T (xx, xy, yy) of the two lane groups of each row (columns
+// x = -3..0 and 1..4) and the running sums of their cumulative row sums Q (sum_rows P_k =
+// sum_y (4 - y) r_y, so My = 4 G - Q), all scaled by `scale`.
+void moments_from_lanes(const Float4 (&g_acc)[2][3], const Float4 (&q_acc)[2][3], double scale,
+                        TemplateGradientMoments* out) {
+  const Float4 x_of_lane[2] = {Float4{-3.0f, -2.0f, -1.0f, 0.0f}, Float4{1.0f, 2.0f, 3.0f, 4.0f}};
+  double G[3];
+  double Mx[3];
+  double My[3];
+  for (int j = 0; j < 3; ++j) {
+    const double g = sum_lanes(g_acc[0][j] + g_acc[1][j]);
+    Mx[j] = scale * sum_lanes(g_acc[0][j] * x_of_lane[0] + g_acc[1][j] * x_of_lane[1]);
+    My[j] = scale * (4.0 * g - sum_lanes(q_acc[0][j] + q_acc[1][j]));
+    G[j] = scale * g;
   }
-  return Status::kOk;
+  out->G << G[0], G[1], G[1], G[2];
+  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
+  out->My << My[0], My[1], My[1], My[2];
+}
+
+constexpr int kFrameStride = 12;  // row stride of the framed copies: the second lane group's neighbours fit
+constexpr int kFrameRows = kPatchSize + 2;
+
+// No pixel masked: extrapolating the frame linearly (v_-1 = 2 v_0 - v_1) turns the one-sided
+// differences at the border into central ones, so g = (v_f - v_b) / 2 everywhere (computed as 2 g).
+void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  alignas(16) float v[kFrameRows * kFrameStride] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    float* row = &v[(ty + 1) * kFrameStride];
+    std::memcpy(row + 1, &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)], kPatchSize * sizeof(float));
+    row[0] = 2.0f * row[1] - row[2];
+    row[kPatchSize + 1] = 2.0f * row[kPatchSize] - row[kPatchSize - 1];
+  }
+  for (int x = 1; x <= kPatchSize; ++x) {
+    v[x] = 2.0f * v[kFrameStride + x] - v[2 * kFrameStride + x];
+    v[(kFrameRows - 1) * kFrameStride + x] =
+        2.0f * v[(kFrameRows - 2) * kFrameStride + x] - v[(kFrameRows - 3) * kFrameStride + x];
+  }
+  // The eighth lane of each row (the frame column) must add nothing.
+  const Float4 last_lane_off[2] = {splat4(1.0f), Float4{1.0f, 1.0f, 1.0f, 0.0f}};
+  Float4 g_acc[2][3] = {};
+  Float4 q_acc[2][3] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int group = 0; group < 2; ++group) {
+      const int c = (ty + 1) * kFrameStride + 1 + 4 * group;
+      const Float4 gx = (load4(&v[c + 1]) - load4(&v[c - 1])) * last_lane_off[group];
+      const Float4 gy = (load4(&v[c + kFrameStride]) - load4(&v[c - kFrameStride])) * last_lane_off[group];
+      g_acc[group][0] += gx * gx;
+      g_acc[group][1] += gx * gy;
+      g_acc[group][2] += gy * gy;
+    }
+    for (int group = 0; group < 2; ++group) {
+      for (int j = 0; j < 3; ++j) q_acc[group][j] += g_acc[group][j];
+    }
+  }
+  moments_from_lanes(g_acc, q_acc, 0.25, out);
+}
+
+}  // namespace
+
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  static_assert(kPatchSize == 7, "two four-lane groups per template row");
+  if (tmpl.valid_count == kPatchPixels) {
+    unmasked_moments(tmpl, out);
+    return;
+  }
+  // The template and its mask inside a frame of masked zeros, so every pixel has both neighbours on
+  // each axis and the one-sided rule is arithmetic: with m_f, m_b the neighbours' masks,
+  // g = (m_f (v_f - v) + m_b (v - v_b)) / (m_f + m_b), and a pixel counts when it is valid and
+  // m_f + m_b > 0 on both axes. The eighth lane of each row is the frame: masked, it adds nothing.
+  alignas(16) float v[kFrameRows * kFrameStride] = {};
+  alignas(16) float m[kFrameRows * kFrameStride] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    std::memcpy(&v[(ty + 1) * kFrameStride + 1], &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+    std::memcpy(&m[(ty + 1) * kFrameStride + 1], &tmpl.mask[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+  }
+  // Masks as exactly 0 or 1 (make_template writes them so; a hand-made template may not).
+  for (int i = 0; i < kFrameRows * kFrameStride; i += 4) {
+    store4(&m[i], load4(&m[i]) > splat4(0.5f) ? splat4(1.0f) : splat4(0.0f));
+  }
+  Float4 g_acc[2][3] = {};
+  Float4 q_acc[2][3] = {};
+  const Float4 half = splat4(0.5f);
+  const Float4 one = splat4(1.0f);
+  const Float4 zero = splat4(0.0f);
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int group = 0; group < 2; ++group) {
+      const int c = (ty + 1) * kFrameStride + 1 + 4 * group;
+      const Float4 vc = load4(&v[c]);
+      const Float4 mxf = load4(&m[c + 1]);
+      const Float4 mxb = load4(&m[c - 1]);
+      const Float4 myf = load4(&m[c + kFrameStride]);
+      const Float4 myb = load4(&m[c - kFrameStride]);
+      const Float4 nx = mxf + mxb;  // in {0, 1, 2}
+      const Float4 ny = myf + myb;
+      const Float4 keep = (nx > half && ny > half) ? load4(&m[c]) : zero;
+      const Float4 scale_x = (nx > splat4(1.5f) ? half : one) * keep;
+      const Float4 scale_y = (ny > splat4(1.5f) ? half : one) * keep;
+      const Float4 gx = (mxf * (load4(&v[c + 1]) - vc) + mxb * (vc - load4(&v[c - 1]))) * scale_x;
+      const Float4 gy = (myf * (load4(&v[c + kFrameStride]) - vc) + myb * (vc - load4(&v[c - kFrameStride]))) * scale_y;
+      g_acc[group][0] += gx * gx;
+      g_acc[group][1] += gx * gy;
+      g_acc[group][2] += gy * gy;
+    }
+    for (int group = 0; group < 2; ++group) {
+      for (int j = 0; j < 3; ++j) q_acc[group][j] += g_acc[group][j];
+    }
+  }
+  moments_from_lanes(g_acc, q_acc, 1.0, out);
+}
+
+Eigen::Matrix2d warp_shift_covariance(const TemplateGradientMoments& moments, const Eigen::Matrix2d& A_ref_per_target,
+                                      const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance) {
+  const Eigen::Matrix2d A_inv = A_ref_per_target.inverse();
+  if (!A_inv.allFinite() || !(tilt_variance > 0.0)) return Eigen::Matrix2d::Zero();
+  const Eigen::Matrix2d& G = moments.G;
+  if (!(G.determinant() > 1e-12 * G.squaredNorm())) return Eigen::Matrix2d::Zero();
+  const Eigen::Matrix2d G_inv = G.inverse();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  for (int k = 0; k < 2; ++k) {
+    // U_k = A^-1 dA_k displaces the template by U_k x at offset x; the least-squares shift is G^-1 b_k.
+    const Eigen::Matrix2d U = A_inv * dA[static_cast<std::size_t>(k)];
+    const Eigen::Vector2d shift = G_inv * (moments.Mx * U.col(0) + moments.My * U.col(1));
+    covariance += shift * shift.transpose();
+  }
+  return tilt_variance * covariance;
 }
 
 Eigen::Matrix2d warp_shift_covariance(const NccTemplate& tmpl, const Eigen::Matrix2d& A_ref_per_target,
                                       const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance) {
-  const Eigen::Matrix2d A_inv = A_ref_per_target.inverse();
-  if (!A_inv.allFinite() || !(tilt_variance > 0.0)) return Eigen::Matrix2d::Zero();
-  const Eigen::Matrix2d U[2] = {A_inv * dA[0], A_inv * dA[1]};  // displacement per unit tilt: U_k x
-  Eigen::Matrix2d G = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d b[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
-  auto valid = [&](int x, int y) {
-    return x >= 0 && y >= 0 && x < kPatchSize && y < kPatchSize && tmpl.mask[y * kPatchSize + x] > 0.5f;
-  };
-  auto value = [&](int x, int y) { return static_cast<double>(tmpl.values[y * kPatchSize + x]); };
-  // One-sided differences at the mask's edge, none where both sides are missing.
-  auto derivative = [&](int x, int y, int dx, int dy, double* out) {
-    const bool forward = valid(x + dx, y + dy);
-    const bool backward = valid(x - dx, y - dy);
-    if (forward && backward) {
-      *out = 0.5 * (value(x + dx, y + dy) - value(x - dx, y - dy));
-    } else if (forward) {
-      *out = value(x + dx, y + dy) - value(x, y);
-    } else if (backward) {
-      *out = value(x, y) - value(x - dx, y - dy);
-    } else {
-      return false;
-    }
-    return true;
-  };
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      if (!valid(tx, ty)) continue;
-      Eigen::Vector2d g;
-      if (!derivative(tx, ty, 1, 0, &g.x()) || !derivative(tx, ty, 0, 1, &g.y())) continue;
-      const Eigen::Vector2d offset(tx - kPatchRadius, ty - kPatchRadius);
-      G += g * g.transpose();
-      for (int k = 0; k < 2; ++k) b[k] += g * g.dot(U[k] * offset);
-    }
-  }
-  if (!(G.determinant() > 1e-12 * G.squaredNorm())) return Eigen::Matrix2d::Zero();
-  const Eigen::Matrix2d G_inv = G.inverse();
-  const Eigen::Vector2d m0 = G_inv * b[0];
-  const Eigen::Vector2d m1 = G_inv * b[1];
-  return tilt_variance * (m0 * m0.transpose() + m1 * m1.transpose());
+  TemplateGradientMoments moments;
+  template_gradient_moments(tmpl, &moments);
+  return warp_shift_covariance(moments, A_ref_per_target, dA, tilt_variance);
 }
 
 }  // namespace vantage
-
