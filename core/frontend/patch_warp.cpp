@@ -56,29 +56,63 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
 
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
                          NccTemplate* out) {
-  std::array<float, kPatchPixels> gray{};
-  std::array<float, kPatchPixels> mask{};
-  constexpr double kLimit = kPatchRadius;  // the stored patch covers offsets [-r, r]
+  static_assert(kPatchSize == 7, "two four-lane groups per template row");
+  using Int4 = std::int32_t __attribute__((vector_size(16)));
+  // Float, four target pixels at a time: the values are gray levels, the offsets a few pixels.
+  alignas(16) float source[64];
+  bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, source, 64);
+  // Row-major p x p plus one lane: the last group of a row spills into the next row's first pixel,
+  // which that row's first group then writes.
+  alignas(16) float gray[kPatchPixels + 3] = {};
+  alignas(16) float mask[kPatchPixels + 3] = {};
+  const Float4 limit = splat4(static_cast<float>(kPatchRadius));  // the stored patch covers offsets [-r, r]
+  const Float4 a00 = splat4(static_cast<float>(A(0, 0)));
+  const Float4 a01 = splat4(static_cast<float>(A(0, 1)));
+  const Float4 a10 = splat4(static_cast<float>(A(1, 0)));
+  const Float4 a11 = splat4(static_cast<float>(A(1, 1)));
+  const Float4 zero = splat4(0.0f);
+  const Float4 dx_of_group[2] = {Float4{-3.0f, -2.0f, -1.0f, 0.0f}, Float4{1.0f, 2.0f, 3.0f, 3.0f}};
+  const Int4 lane_used[2] = {Int4{-1, -1, -1, -1}, Int4{-1, -1, -1, 0}};
+  const Int4 last_cell = Int4{kPatchSize - 2, kPatchSize - 2, kPatchSize - 2, kPatchSize - 2};
   for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      const Eigen::Vector2d offset = A * Eigen::Vector2d(tx - kPatchRadius, ty - kPatchRadius);
-      const int i = ty * kPatchSize + tx;
-      if (!(std::abs(offset.x()) <= kLimit) || !(std::abs(offset.y()) <= kLimit)) continue;
-      const double sx = offset.x() + kPatchRadius;
-      const double sy = offset.y() + kPatchRadius;
-      int x0 = static_cast<int>(std::floor(sx));
-      int y0 = static_cast<int>(std::floor(sy));
-      if (x0 > kPatchSize - 2) x0 = kPatchSize - 2;
-      if (y0 > kPatchSize - 2) y0 = kPatchSize - 2;
-      const double fx = sx - x0;
-      const double fy = sy - y0;
-      const double top = (1.0 - fx) * patch[y0 * kPatchSize + x0] + fx * patch[y0 * kPatchSize + x0 + 1];
-      const double bottom = (1.0 - fx) * patch[(y0 + 1) * kPatchSize + x0] + fx * patch[(y0 + 1) * kPatchSize + x0 + 1];
-      gray[i] = static_cast<float>((1.0 - fy) * top + fy * bottom);
-      mask[i] = 1.0f;
+    const Float4 dy = splat4(static_cast<float>(ty - kPatchRadius));
+    for (int group = 0; group < 2; ++group) {
+      const Float4 ox = a00 * dx_of_group[group] + a01 * dy;
+      const Float4 oy = a10 * dx_of_group[group] + a11 * dy;
+      const Int4 inside = (ox <= limit) & (ox >= -limit) & (oy <= limit) & (oy >= -limit) & lane_used[group];
+      // Outside lanes sample the corner (finite, then masked).
+      const Float4 sx = inside ? ox + limit : zero;
+      const Float4 sy = inside ? oy + limit : zero;
+      Int4 x0 = __builtin_convertvector(sx, Int4);  // sx >= 0: truncation is floor
+      Int4 y0 = __builtin_convertvector(sy, Int4);
+      x0 = x0 > last_cell ? last_cell : x0;
+      y0 = y0 > last_cell ? last_cell : y0;
+      const Float4 fx = sx - __builtin_convertvector(x0, Float4);
+      const Float4 fy = sy - __builtin_convertvector(y0, Float4);
+      const Int4 base = y0 * kPatchSize + x0;
+      Float4 top_left;
+      Float4 top_right;
+      Float4 bottom_left;
+      Float4 bottom_right;
+      for (int lane = 0; lane < 4; ++lane) {
+        const float* s0 = &source[base[lane]];
+        top_left[lane] = s0[0];
+        top_right[lane] = s0[1];
+        bottom_left[lane] = s0[kPatchSize];
+        bottom_right[lane] = s0[kPatchSize + 1];
+      }
+      const Float4 top = top_left + fx * (top_right - top_left);
+      const Float4 bottom = bottom_left + fx * (bottom_right - bottom_left);
+      const int i = ty * kPatchSize + 4 * group;
+      store4(&gray[i], inside ? top + fy * (bottom - top) : zero);
+      store4(&mask[i], inside ? splat4(1.0f) : zero);
     }
   }
-  make_template(gray, mask, out);
+  std::array<float, kPatchPixels> gray_out;
+  std::array<float, kPatchPixels> mask_out;
+  std::memcpy(gray_out.data(), gray, sizeof gray_out);
+  std::memcpy(mask_out.data(), mask, sizeof mask_out);
+  make_template(gray_out, mask_out, out);
 }
 
 Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
