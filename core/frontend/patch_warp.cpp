@@ -161,7 +161,12 @@ constexpr int kFrameRows = kPatchSize + 2;
 // No pixel masked: extrapolating the frame linearly (v_-1 = 2 v_0 - v_1) turns the one-sided
 // differences at the border into central ones, so g = (v_f - v_b) / 2 everywhere (computed as 2 g).
 void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
-  alignas(16) float v[kFrameRows * kFrameStride] = {};
+  alignas(16) float v[kFrameRows * kFrameStride];
+  // Read but not written below: the lane past the frame (column 9) and the frame rows' corners (columns 0
+  // and 8); all multiplied by zero, they only need to be finite.
+  for (int y = 0; y < kFrameRows; ++y) v[y * kFrameStride + kPatchSize + 2] = 0.0f;
+  v[0] = v[kPatchSize + 1] = 0.0f;
+  v[(kFrameRows - 1) * kFrameStride] = v[(kFrameRows - 1) * kFrameStride + kPatchSize + 1] = 0.0f;
   for (int ty = 0; ty < kPatchSize; ++ty) {
     float* row = &v[(ty + 1) * kFrameStride];
     std::memcpy(row + 1, &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)], kPatchSize * sizeof(float));
@@ -173,24 +178,41 @@ void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
     v[(kFrameRows - 1) * kFrameStride + x] =
         2.0f * v[(kFrameRows - 2) * kFrameStride + x] - v[(kFrameRows - 3) * kFrameStride + x];
   }
-  // The eighth lane of each row (the frame column) must add nothing.
-  const Float4 last_lane_off[2] = {splat4(1.0f), Float4{1.0f, 1.0f, 1.0f, 0.0f}};
-  Float4 g_acc[2][3] = {};
-  Float4 q_acc[2][3] = {};
+  // The eighth lane of each row (the frame column) must add nothing. Lane sums of g g^T per lane group
+  // (x = -3..0 and 1..4) and the row-weighted sum for My, in registers.
+  const Float4 last_lane_off = Float4{1.0f, 1.0f, 1.0f, 0.0f};
+  Float4 xx0 = splat4(0.0f), xy0 = xx0, yy0 = xx0, xx1 = xx0, xy1 = xx0, yy1 = xx0;
+  Float4 xx_y = xx0, xy_y = xx0, yy_y = xx0;
   for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int group = 0; group < 2; ++group) {
-      const int c = (ty + 1) * kFrameStride + 1 + 4 * group;
-      const Float4 gx = (load4(&v[c + 1]) - load4(&v[c - 1])) * last_lane_off[group];
-      const Float4 gy = (load4(&v[c + kFrameStride]) - load4(&v[c - kFrameStride])) * last_lane_off[group];
-      g_acc[group][0] += gx * gx;
-      g_acc[group][1] += gx * gy;
-      g_acc[group][2] += gy * gy;
-    }
-    for (int group = 0; group < 2; ++group) {
-      for (int j = 0; j < 3; ++j) q_acc[group][j] += g_acc[group][j];
-    }
+    const int c0 = (ty + 1) * kFrameStride + 1;
+    const int c1 = c0 + 4;
+    const Float4 gx0 = load4(&v[c0 + 1]) - load4(&v[c0 - 1]);
+    const Float4 gy0 = load4(&v[c0 + kFrameStride]) - load4(&v[c0 - kFrameStride]);
+    const Float4 gx1 = (load4(&v[c1 + 1]) - load4(&v[c1 - 1])) * last_lane_off;
+    const Float4 gy1 = (load4(&v[c1 + kFrameStride]) - load4(&v[c1 - kFrameStride])) * last_lane_off;
+    const Float4 pxx0 = gx0 * gx0, pxy0 = gx0 * gy0, pyy0 = gy0 * gy0;
+    const Float4 pxx1 = gx1 * gx1, pxy1 = gx1 * gy1, pyy1 = gy1 * gy1;
+    xx0 += pxx0;
+    xy0 += pxy0;
+    yy0 += pyy0;
+    xx1 += pxx1;
+    xy1 += pxy1;
+    yy1 += pyy1;
+    const Float4 y = splat4(static_cast<float>(ty - kPatchRadius));
+    xx_y += y * (pxx0 + pxx1);
+    xy_y += y * (pxy0 + pxy1);
+    yy_y += y * (pyy0 + pyy1);
   }
-  moments_from_lanes(g_acc, q_acc, 0.25, out);
+  const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
+  const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
+  constexpr double kQuarter = 0.25;  // (2 g)^2
+  const double G[3] = {kQuarter * sum_lanes(xx0 + xx1), kQuarter * sum_lanes(xy0 + xy1), kQuarter * sum_lanes(yy0 + yy1)};
+  const double Mx[3] = {kQuarter * sum_lanes(xx0 * x0 + xx1 * x1), kQuarter * sum_lanes(xy0 * x0 + xy1 * x1),
+                        kQuarter * sum_lanes(yy0 * x0 + yy1 * x1)};
+  const double My[3] = {kQuarter * sum_lanes(xx_y), kQuarter * sum_lanes(xy_y), kQuarter * sum_lanes(yy_y)};
+  out->G << G[0], G[1], G[1], G[2];
+  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
+  out->My << My[0], My[1], My[1], My[2];
 }
 
 }  // namespace
