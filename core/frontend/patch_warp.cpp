@@ -40,10 +40,12 @@ Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, con
   return Status::kOk;
 }
 
-Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
-                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
-  const Eigen::Vector3d n = normal_world.cast<double>();
-  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
+namespace {
+
+// plane_affine_from_jacobians with the Jacobians of X's projections into both views.
+Status plane_affine_projected(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
+                              const Viewpoint& reference, const Viewpoint& target, const PinholeIntrinsics& intrinsics,
+                              Eigen::Matrix2d* A_ref_per_target, std::array<Eigen::Matrix2d, 2>* dA) {
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H_ref;
   Eigen::Matrix<double, 2, 3> H_target;
@@ -51,7 +53,16 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   if (!ok(status)) return status;
   status = project_with_jacobian(X_world, target, intrinsics, &unused, &H_target);
   if (!ok(status)) return status;
-  return plane_affine_from_jacobians(H_ref, H_target, normal_world, A_ref_per_target, nullptr);
+  return plane_affine_from_jacobians(H_ref, H_target, normal_world, A_ref_per_target, dA);
+}
+
+}  // namespace
+
+Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
+                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
+  const Eigen::Vector3d n = normal_world.cast<double>();
+  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
+  return plane_affine_projected(X_world, normal_world, reference, target, intrinsics, A_ref_per_target, nullptr);
 }
 
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
@@ -122,15 +133,8 @@ Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen
   (void)A_ref_per_target;  // recomputed with the Jacobians: the same map
   const Eigen::Vector3f n = normal_world.normalized();
   if (!n.allFinite()) return Status::kInvalidArgument;
-  Eigen::Vector2d unused;
-  Eigen::Matrix<double, 2, 3> H_ref;
-  Eigen::Matrix<double, 2, 3> H_target;
-  Status status = project_with_jacobian(X_world, reference, intrinsics, &unused, &H_ref);
-  if (!ok(status)) return status;
-  status = project_with_jacobian(X_world, target, intrinsics, &unused, &H_target);
-  if (!ok(status)) return status;
   Eigen::Matrix2d A;
-  return plane_affine_from_jacobians(H_ref, H_target, n, &A, dA);
+  return plane_affine_projected(X_world, n, reference, target, intrinsics, &A, dA);
 }
 
 namespace {
