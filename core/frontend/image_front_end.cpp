@@ -27,6 +27,12 @@ bool finite_positive(double value) { return std::isfinite(value) && value > 0.0;
 
 double focal_mean(const PinholeIntrinsics& k) { return 0.5 * (k.fx_px + k.fy_px); }
 
+// floor() for values well inside the int range, without the library call's generality.
+std::int32_t floor_to_int(double value) {
+  const std::int32_t truncated = static_cast<std::int32_t>(value);
+  return truncated - (value < truncated ? 1 : 0);
+}
+
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
@@ -249,6 +255,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       (void)depth_buffer_.splat((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
     }
   }
+  NccTemplate tmpl;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i)) continue;
     Primitive& p = pool[i];
@@ -270,19 +277,23 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       cell_depth_[centre_cell] = static_cast<float>(depth);
     }
     const double reach = radius_px + 0.5 * stride;
-    const std::int32_t cx0 = static_cast<std::int32_t>(std::floor((predicted.x() - reach) / stride));
-    const std::int32_t cx1 = static_cast<std::int32_t>(std::floor((predicted.x() + reach) / stride));
-    const std::int32_t cy0 = static_cast<std::int32_t>(std::floor((predicted.y() - reach) / stride));
-    const std::int32_t cy1 = static_cast<std::int32_t>(std::floor((predicted.y() + reach) / stride));
+    // predicted is inside the image (predicted_in_view), reach a few cells: floor_to_int is exact here.
+    const double inv_stride = 1.0 / stride;
+    const std::int32_t cx0 = floor_to_int((predicted.x() - reach) * inv_stride);
+    const std::int32_t cx1 = floor_to_int((predicted.x() + reach) * inv_stride);
+    const std::int32_t cy0 = floor_to_int((predicted.y() - reach) * inv_stride);
+    const std::int32_t cy1 = floor_to_int((predicted.y() + reach) * inv_stride);
+    const double reach2 = reach * reach;
     for (std::int32_t cy = cy0 < 0 ? 0 : cy0; cy <= cy1 && cy < cells_y_; ++cy) {
+      const double dy = (cy + 0.5) * stride - 0.5 - predicted.y();
       for (std::int32_t cx = cx0 < 0 ? 0 : cx0; cx <= cx1 && cx < cells_x_; ++cx) {
-        const Eigen::Vector2d centre((cx + 0.5) * stride - 0.5, (cy + 0.5) * stride - 0.5);
-        if ((centre - predicted).norm() <= reach) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
+        const double dx = (cx + 0.5) * stride - 0.5 - predicted.x();
+        if (dx * dx + dy * dy <= reach2) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
       }
     }
 
-    // The reference patch, warped by the primitive's plane when the creating view saw it differently.
-    NccTemplate tmpl;
+    // The reference patch, warped by the primitive's plane when the creating view saw it differently
+    // (tmpl, declared before the loop: both template makers write every field).
     Viewpoint creating;
     Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
     std::array<Eigen::Matrix2d, 2> dA;
