@@ -258,7 +258,7 @@ void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments*
       const Float4 myb = load4(&m[c - kFrameStride]);
       const Float4 nx = mxf + mxb;  // in {0, 1, 2}
       const Float4 ny = myf + myb;
-      const Float4 keep = (nx > half && ny > half) ? load4(&m[c]) : zero;
+      const Float4 keep = ((nx > half) & (ny > half)) ? load4(&m[c]) : zero;
       const Float4 scale_x = (nx > splat4(1.5f) ? half : one) * keep;
       const Float4 scale_y = (ny > splat4(1.5f) ? half : one) * keep;
       const Float4 gx = (mxf * (load4(&v[c + 1]) - vc) + mxb * (vc - load4(&v[c - 1]))) * scale_x;
