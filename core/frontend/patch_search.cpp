@@ -18,19 +18,24 @@ Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left,
   return Eigen::Vector2d(x + parabola_peak_offset(left, centre, right), y + parabola_peak_offset(up, centre, down));
 }
 
-// A kernel this CPU lacks falls back to the baseline (MatchConfig::kernel).
-MatchKernel resolved(MatchKernel kernel) { return match_kernel_supported(kernel) ? kernel : MatchKernel::kBaseline; }
+// The kernel views of an image and a template.
+match_kernel::Image kernel_image(const GrayImageView& image) {
+  return match_kernel::Image{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+}
+match_kernel::Template kernel_template(const NccTemplate& tmpl) {
+  return match_kernel::Template{tmpl.values.data(), tmpl.mask.data(), tmpl.norm, tmpl.valid_count};
+}
 
+// refine_subpixel with a stop step and the chosen kernel's functions.
 bool refine_with(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y, int iterations,
-                 double stop_step_px, MatchKernel kernel, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2) {
+                 double stop_step_px, const match_kernel::Functions& kernels, Eigen::Vector2d* uv_px,
+                 Eigen::Matrix2d* covariance_px2) {
   // The kernel (match_kernel_impl.hpp) needs the patch, +-1 px of shift, the bilinear cell and the
   // central-difference gradient inside the image: 3 px of margin.
-  if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8 || !match_kernel_supported(kernel)) return false;
+  if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8) return false;
   match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0};
   if (!(std::abs(fit.dx) < 1.0 && std::abs(fit.dy) < 1.0)) return false;
-  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
-  const match_kernel::Template t{tmpl.values.data(), tmpl.mask.data(), tmpl.norm, tmpl.valid_count};
-  if (!match_kernel::functions(kernel).refine(view, t, x, y, iterations, stop_step_px, &fit)) return false;
+  if (!kernels.refine(kernel_image(image), kernel_template(tmpl), x, y, iterations, stop_step_px, &fit)) return false;
   *uv_px = Eigen::Vector2d(x + fit.dx, y + fit.dy);
   if (covariance_px2 != nullptr) *covariance_px2 << fit.cov_xx, fit.cov_xy, fit.cov_xy, fit.cov_yy;
   return true;
@@ -45,7 +50,9 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
 
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel) {
-  return refine_with(image, tmpl, x, y, iterations, kRefineStopStepPx, kernel, uv_px, covariance_px2);
+  if (!match_kernel_supported(kernel)) return false;
+  return refine_with(image, tmpl, x, y, iterations, kRefineStopStepPx, match_kernel::functions(kernel), uv_px,
+                     covariance_px2);
 }
 
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
@@ -116,10 +123,16 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const std::int32_t n_stride = ncc_box_out_stride(n_w);
   float* ncc = inside + box_size;
   float* const rest = ncc + ncc_size;
-  if (!ncc_box(image, tmpl, n_x0, n_y0, n_w, n_h, Span<float>(rest, scratch.size() - box_size - ncc_size), ncc,
-               resolved(config.kernel))) {
-    return MatchOutcome::kNoRoom;
+  // The kernel directly (ncc_box's checks, the kernel chosen once per search; a CPU without the
+  // configured kernel gets the baseline). A flat template correlates at -1 everywhere: no match.
+  if (scratch.size() - box_size - ncc_size < ncc_box_scratch_size(n_w, n_h)) return MatchOutcome::kNoRoom;
+  if (tmpl.norm <= 0.0f || tmpl.valid_count < 2) {
+    *best_ncc = -1.0f;
+    return MatchOutcome::kBelowThreshold;
   }
+  const match_kernel::Functions kernels = match_kernel::functions(config.kernel);
+  const match_kernel::Box box{n_x0, n_y0, n_w, n_h, ncc_box_plane_stride(n_w), n_stride};
+  kernels.ncc_box(kernel_image(image), kernel_template(tmpl), box, rest, ncc);
   auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - n_y0) * n_stride + x - n_x0]; };
   auto is_inside = [&](std::int32_t x, std::int32_t y) { return inside[(y - y0) * w + x - x0] != 0.0f; };
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
@@ -157,8 +170,8 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
-      !refine_with(image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px,
-                   resolved(config.kernel), &uv, &covariance)) {
+      !refine_with(image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px, kernels, &uv,
+                   &covariance)) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_px = uv;
@@ -270,7 +283,7 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   if (config.subpixel_iterations > 0 &&
       !refine_with(second_image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px,
-                   resolved(config.kernel), &uv, &covariance)) {
+                   match_kernel::functions(config.kernel), &uv, &covariance)) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_second_px = uv;
