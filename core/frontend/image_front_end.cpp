@@ -289,8 +289,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (have_creating) {
       if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
-        p.flags |= primitive_flags::kLostTrack;
-        count_rejection(i, centre_cell, pool, report);
+        reject_observation(i, centre_cell, pool, report);
         continue;
       }
     }
@@ -329,9 +328,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
-      p.flags |= primitive_flags::kLostTrack;
-      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
-      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report);
       continue;
     }
     ++report.matched;
@@ -358,8 +355,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
-      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
-      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report);
     }
   }
 }
@@ -378,6 +374,14 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
   const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
   return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
                                   p.radius);
+}
+
+void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                       UpdateReport& report) {
+  Primitive& p = pool[i];
+  p.flags |= primitive_flags::kLostTrack;
+  if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+  if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
 }
 
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {

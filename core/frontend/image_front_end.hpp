@@ -186,6 +186,9 @@ class ImageFrontEnd final : public MeasurementSource {
   void drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool);
   // After erasing i: its centre cell (kNoCell: none) no longer names it.
   void forget_cell(PrimitiveIndex i, std::size_t centre_cell);
+  // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
+  // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
+  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   // Counts one failed or gated observation of primitive i; erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
