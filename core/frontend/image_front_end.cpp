@@ -1,10 +1,12 @@
 #include "core/frontend/image_front_end.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "core/frontend/iterated_update.hpp"
 #include "core/frontend/patch_warp.hpp"
+#include "core/frontend/photometric_normal.hpp"
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
 #include "core/geometry/projection.hpp"
@@ -43,7 +45,7 @@ Status FrontEndConfig::validate() const {
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
-                           facing_normal_tilt_variance};
+                           facing_normal_tilt_variance, photometric_normal_min_tilt_variance};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -68,7 +70,9 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_px)) return Status::kInvalidArgument;
-  if (!(facing_normal_tilt_variance >= 0.0)) return Status::kInvalidArgument;
+  if (!(facing_normal_tilt_variance >= 0.0) || !(photometric_normal_min_tilt_variance >= 0.0)) {
+    return Status::kInvalidArgument;
+  }
   if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
       !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
     return Status::kInvalidArgument;
@@ -331,6 +335,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       reject_observation(i, centre_cell, pool, report);
       continue;
     }
+    // A poorly known normal: estimate it from this view's appearance, then match with its warp.
+    if (config_.photometric_normal && have_creating &&
+        normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance) {
+      (void)refine_normal_photometric(i, image, creating, view, pool, &B, &warp_covariance, &observed, &fit_covariance);
+    }
     ++report.matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
@@ -374,6 +383,63 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
   const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
   return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
                                   p.radius);
+}
+
+bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
+                                              const Viewpoint& view, PrimitivePoolView& pool, Eigen::Matrix2d* B,
+                                              Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
+                                              Eigen::Matrix2d* fit_covariance) {
+  if (config_.subpixel_iterations < 1 || !config_.adaptive_R) return false;
+  Primitive& p = pool[i];
+  PhotometricNormalQuery query;
+  query.X_world = p.X_world;
+  query.normal_world = p.normal_world;
+  // Every estimate uses the same reference patch, so their errors are not independent: the prior is the
+  // facing prior's width (the current normal only linearizes), and the estimate replaces the normal when
+  // it knows it better, as a plane fit does; it is not fused with the earlier ones.
+  const double current_variance = normal_tilt_variance(i);
+  query.prior_tilt_variance = std::max(config_.facing_normal_tilt_variance, current_variance);
+  query.reference = creating;
+  query.target = view;
+  query.uv_target_px = *observed;
+  query.min_facing_cos = config_.min_facing_cos;
+  PhotometricNormalEstimate estimate;
+  if (!ok(estimate_photometric_normal(image, p.patch, query, intrinsics_, &estimate)) ||
+      !(estimate.tilt_variance < current_variance)) {
+    return false;
+  }
+  // The match again, with the template warped by the estimated plane.
+  Eigen::Matrix2d A;
+  if (!ok(plane_affine(p.X_world, estimate.normal_world, creating, view, intrinsics_, &A))) return false;
+  NccTemplate tmpl;
+  Eigen::Matrix2d B_new = Eigen::Matrix2d::Identity();
+  if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
+    warp_patch_template(p.patch, A, &tmpl);
+    B_new = A.inverse();
+  } else {
+    make_template(p.patch, &tmpl);
+  }
+  if (tmpl.valid_count < kPatchPixels / 2) return false;
+  Eigen::Vector2d uv = *observed;
+  Eigen::Matrix2d covariance;
+  if (!refine_subpixel(image, tmpl, static_cast<std::int32_t>(std::lround(observed->x())),
+                       static_cast<std::int32_t>(std::lround(observed->y())), config_.subpixel_iterations, &uv,
+                       &covariance)) {
+    return false;
+  }
+  Eigen::Matrix2d warp = Eigen::Matrix2d::Zero();
+  std::array<Eigen::Matrix2d, 2> dA;
+  if (config_.model_normal_uncertainty &&
+      ok(plane_affine_tilt_derivatives(p.X_world, estimate.normal_world, creating, view, intrinsics_, A, &dA))) {
+    warp = warp_shift_covariance(tmpl, A, dA, estimate.tilt_variance);
+  }
+  p.normal_world = estimate.normal_world;
+  set_normal_tilt_variance(i, estimate.tilt_variance);
+  *B = B_new;
+  *warp_covariance = warp;
+  *observed = uv;
+  *fit_covariance = covariance;
+  return true;
 }
 
 void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,

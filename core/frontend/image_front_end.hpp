@@ -76,6 +76,12 @@ struct FrontEndConfig {
   // (surfaces show in proportion to their projected area) have variance 1/4 each.
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
+  // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
+  // variance exceeds photometric_normal_min_tilt_variance gets its normal estimated from the warp between
+  // its creating view and this one (MAP with its current normal as the prior), and is matched again with
+  // the template warped by it. Needs adaptive_R and subpixel_iterations >= 1.
+  bool photometric_normal = true;
+  double photometric_normal_min_tilt_variance = 0.01;
   // The reference patch's own pixel noise shifts the feature every match of a primitive looks for by the
   // same amount: an error common to all its observations, carried in the consider form of the update
   // (core/frontend/iterated_update.hpp) instead of averaging away. Its covariance is half the fit
@@ -168,6 +174,9 @@ class ImageFrontEnd final : public MeasurementSource {
   std::uint32_t next_view_index() const { return next_view_index_; }
   // The pose of an earlier image, if still in the table. kNotFound otherwise.
   Status view_pose(std::uint32_t view_index, Viewpoint* pose) const;
+  // The tilt variance (rad^2 per axis) of primitive i's normal: the facing prior, a plane fit's or a
+  // photometric estimate's (README, "Normal uncertainty").
+  double normal_tilt_variance(PrimitiveIndex i) const;
 
  private:
   // Checks one frame and its pose; counts the rejection.
@@ -180,6 +189,13 @@ class ImageFrontEnd final : public MeasurementSource {
   // with occlusion, not behind the depth buffer. Its projection and Jacobian go to *predicted and *H.
   bool predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion, Eigen::Vector2d* predicted,
                          Eigen::Matrix<double, 2, 3>* H) const;
+  // Estimates matched primitive i's normal photometrically (FrontEndConfig::photometric_normal) and
+  // matches it again near *observed with the template warped by it; on success adopts the normal and its
+  // tilt variance and replaces B, the warp covariance, the match and its fit covariance. False: unchanged.
+  bool refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
+                                 const Viewpoint& view, PrimitivePoolView& pool, Eigen::Matrix2d* B,
+                                 Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
+                                 Eigen::Matrix2d* fit_covariance);
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
   // confirm_spawns); centre_cell (kNoCell: none) forgets it.
   static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);
@@ -202,7 +218,6 @@ class ImageFrontEnd final : public MeasurementSource {
   // is below the current one. The camera orients the normal.
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,
                   const Eigen::Vector3d& camera_world, PrimitivePoolView& pool);
-  double normal_tilt_variance(PrimitiveIndex i) const;
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,

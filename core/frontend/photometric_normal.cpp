@@ -47,7 +47,46 @@ struct NormalEquations {
   Vector6d Jtr = Vector6d::Zero();
   double sum_r2 = 0.0;
   int count = 0;
+  // Per reference pixel (row-major p x p): the Jacobian row and the residual, for the correlation model.
+  std::array<Vector6d, kPatchPixels> J;
+  std::array<double, kPatchPixels> r;
 };
+
+// J^T C J / sigma^2 for residuals whose correlation C is separable with lag-one correlations rho_x and
+// rho_y between horizontal and vertical neighbours (rho_x rho_y diagonally) and none farther.
+Matrix6d correlated_meat(const NormalEquations& eq, double rho_x, double rho_y) {
+  Matrix6d meat = eq.JtJ;
+  auto pair = [&](int a, int b, double rho) {
+    const Matrix6d cross = eq.J[static_cast<std::size_t>(a)] * eq.J[static_cast<std::size_t>(b)].transpose();
+    meat += rho * (cross + cross.transpose());
+  };
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int x = 0; x < kPatchSize; ++x) {
+      const int i = y * kPatchSize + x;
+      if (x + 1 < kPatchSize) pair(i, i + 1, rho_x);
+      if (y + 1 < kPatchSize) pair(i, i + kPatchSize, rho_y);
+      if (x + 1 < kPatchSize && y + 1 < kPatchSize) pair(i, i + kPatchSize + 1, rho_x * rho_y);
+      if (x > 0 && y + 1 < kPatchSize) pair(i, i + kPatchSize - 1, rho_x * rho_y);
+    }
+  }
+  return meat;
+}
+
+// Lag-one correlation of the residual field along x (dx = 1) or y, clamped to [0, 0.45] (the truncated
+// separable model stays positive definite below 0.5).
+double lag_one_correlation(const NormalEquations& eq, int dx, int dy) {
+  double products = 0.0;
+  int pairs = 0;
+  for (int y = 0; y + dy < kPatchSize; ++y) {
+    for (int x = 0; x + dx < kPatchSize; ++x) {
+      products += eq.r[static_cast<std::size_t>(y * kPatchSize + x)] * eq.r[static_cast<std::size_t>((y + dy) * kPatchSize + x + dx)];
+      ++pairs;
+    }
+  }
+  if (!(eq.sum_r2 > 0.0) || pairs == 0) return 0.0;
+  const double rho = (products / pairs) / (eq.sum_r2 / eq.count);
+  return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+}
 
 // The normal equations of the photometric fit at parameters theta (u, t, gain, offset).
 Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
@@ -67,7 +106,10 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
     dM[j] = (M_step - M) / kStep;
   }
   const Eigen::Vector2d u = theta.head<2>();
-  *out = NormalEquations{};
+  out->JtJ.setZero();
+  out->Jtr.setZero();
+  out->sum_r2 = 0.0;
+  out->count = 0;
   for (int ty = 0; ty < kPatchSize; ++ty) {
     for (int tx = 0; tx < kPatchSize; ++tx) {
       const Eigen::Vector2d y(tx - kPatchRadius, ty - kPatchRadius);
@@ -85,6 +127,8 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
       out->JtJ.selfadjointView<Eigen::Lower>().rankUpdate(J);
       out->Jtr += J * r;
+      out->J[static_cast<std::size_t>(ty * kPatchSize + tx)] = J;
+      out->r[static_cast<std::size_t>(ty * kPatchSize + tx)] = r;
       out->sum_r2 += r * r;
       ++out->count;
     }
@@ -140,6 +184,19 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     theta += step;
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
+  // The residuals of a resampled patch are not white (bilinear interpolation mixes neighbouring pixels'
+  // noise; the interpolation's model error is smooth): the pixels' information is that of a correlated
+  // field, H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one
+  // correlations. White residuals give M = H.
+  const double dof = eq.count - kParams;
+  const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+  const Matrix6d meat = correlated_meat(eq, lag_one_correlation(eq, 1, 0), lag_one_correlation(eq, 0, 1));
+  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
+  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
+  information = eq.JtJ * meat_ldlt.solve(eq.JtJ) / sigma2;
+  information = 0.5 * (information + information.transpose()).eval();
+  information(2, 2) += prior_information;
+  information(3, 3) += prior_information;
   const Eigen::LDLT<Matrix6d> ldlt(information);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
   const Matrix6d covariance = ldlt.solve(Matrix6d::Identity());
