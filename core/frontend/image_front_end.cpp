@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/frontend/iterated_update.hpp"
+#include "core/frontend/match_covariance.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/frontend/photometric_normal.hpp"
 #include "core/frontend/surface_fit.hpp"
@@ -239,6 +240,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const double focal = focal_mean(intrinsics_);
   const double stride = config_.seed_stride_px;
   const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
+  // A new primitive's first match confirms its two-view match (confirm_spawns): it needs what a spawn needs.
+  const MatchConfig confirm{config_.spawn_ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
   // Occluders first: every primitive in front of the camera, pushed back by its uncertainty.
@@ -328,7 +331,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
       query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
       float best = 0.0f;
-      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
+      const bool confirming = config_.confirm_spawns && p.observation_count == 0;
+      outcome = search_window(image, tmpl, query, confirming ? confirm : match, scratch, &observed, &best,
+                              &fit_covariance);
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
@@ -338,8 +343,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     // A poorly known normal: estimate it from this view's appearance, then match with its warp.
     if (config_.photometric_normal && have_creating &&
         normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance) {
-      (void)refine_normal_photometric(i, image, creating, view, pool, &B, &warp_covariance, &observed, &fit_covariance);
+      (void)refine_normal_photometric(i, image, creating, view, pool, &tmpl, &B, &warp_covariance, &observed,
+                                      &fit_covariance);
     }
+    correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
     ++report.matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
@@ -386,7 +393,8 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
-                                              const Viewpoint& view, PrimitivePoolView& pool, Eigen::Matrix2d* B,
+                                              const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl_out,
+                                              Eigen::Matrix2d* B,
                                               Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
                                               Eigen::Matrix2d* fit_covariance) {
   if (config_.subpixel_iterations < 1 || !config_.adaptive_R) return false;
@@ -435,11 +443,19 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
   }
   p.normal_world = estimate.normal_world;
   set_normal_tilt_variance(i, estimate.tilt_variance);
+  *tmpl_out = tmpl;
   *B = B_new;
   *warp_covariance = warp;
   *observed = uv;
   *fit_covariance = covariance;
   return true;
+}
+
+void ImageFrontEnd::correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl,
+                                             const Eigen::Vector2d& uv_px, Eigen::Matrix2d* fit_covariance) const {
+  if (!config_.correlated_fit_covariance || !config_.adaptive_R || !fit_covariance->allFinite()) return;
+  Eigen::Matrix2d correlated;
+  if (correlated_match_covariance(image, tmpl, uv_px, &correlated)) *fit_covariance = correlated;
 }
 
 void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
@@ -655,6 +671,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
         continue;
       }
       ++stats_.seeds_matched;
+      correlate_fit_covariance(other, tmpl, matched_px, &fit_covariance);
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
       observation.R_b_px2 = measurement_R(fit_covariance);

@@ -67,6 +67,9 @@ struct FrontEndConfig {
   // Iterations of the iterated EKF update (core/frontend/iterated_update.hpp); 1 is the plain EKF.
   int ekf_iterations = 5;
   double match_sigma_floor_px = 0.05;
+  // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
+  // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R.
+  bool correlated_fit_covariance = true;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
   // The normal's uncertainty in R (see README, "Normal uncertainty"): a primitive's normal has a tilt
@@ -191,11 +194,15 @@ class ImageFrontEnd final : public MeasurementSource {
                          Eigen::Matrix<double, 2, 3>* H) const;
   // Estimates matched primitive i's normal photometrically (FrontEndConfig::photometric_normal) and
   // matches it again near *observed with the template warped by it; on success adopts the normal and its
-  // tilt variance and replaces B, the warp covariance, the match and its fit covariance. False: unchanged.
+  // tilt variance and replaces the template, B, the warp covariance, the match and its fit covariance. False: unchanged.
   bool refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
-                                 const Viewpoint& view, PrimitivePoolView& pool, Eigen::Matrix2d* B,
+                                 const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl, Eigen::Matrix2d* B,
                                  Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
                                  Eigen::Matrix2d* fit_covariance);
+  // Replaces a match's fit covariance by the one with the residuals' spatial correlation
+  // (FrontEndConfig::correlated_fit_covariance) when that can be computed.
+  void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
+                                Eigen::Matrix2d* fit_covariance) const;
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
   // confirm_spawns); centre_cell (kNoCell: none) forgets it.
   static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);

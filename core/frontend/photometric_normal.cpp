@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
+#include "core/frontend/correlated_residuals.hpp"
 #include "core/frontend/patch_warp.hpp"
 
 namespace vantage {
@@ -14,19 +15,6 @@ namespace {
 constexpr int kParams = 6;  // u (2), tilt (2), gain, offset
 using Matrix6d = Eigen::Matrix<double, kParams, kParams>;
 using Vector6d = Eigen::Matrix<double, kParams, 1>;
-
-// Bilinear interpolation; the caller keeps (x, y) inside [0, w - 1) x [0, h - 1).
-double bilinear(const GrayImageView& image, double x, double y) {
-  const double fx0 = std::floor(x);
-  const double fy0 = std::floor(y);
-  const auto x0 = static_cast<std::int32_t>(fx0);
-  const auto y0 = static_cast<std::int32_t>(fy0);
-  const double fx = x - fx0;
-  const double fy = y - fy0;
-  const double top = (1.0 - fx) * image.at(x0, y0) + fx * image.at(x0 + 1, y0);
-  const double bottom = (1.0 - fx) * image.at(x0, y0 + 1) + fx * image.at(x0 + 1, y0 + 1);
-  return (1.0 - fy) * top + fy * bottom;
-}
 
 // The target-per-reference map of the plane with normal n at X (inverse of plane_affine's).
 Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& n,
@@ -47,46 +35,8 @@ struct NormalEquations {
   Vector6d Jtr = Vector6d::Zero();
   double sum_r2 = 0.0;
   int count = 0;
-  // Per reference pixel (row-major p x p): the Jacobian row and the residual, for the correlation model.
-  std::array<Vector6d, kPatchPixels> J;
-  std::array<double, kPatchPixels> r;
+  PatchResiduals<kParams> rows;  // for the correlation model
 };
-
-// J^T C J / sigma^2 for residuals whose correlation C is separable with lag-one correlations rho_x and
-// rho_y between horizontal and vertical neighbours (rho_x rho_y diagonally) and none farther.
-Matrix6d correlated_meat(const NormalEquations& eq, double rho_x, double rho_y) {
-  Matrix6d meat = eq.JtJ;
-  auto pair = [&](int a, int b, double rho) {
-    const Matrix6d cross = eq.J[static_cast<std::size_t>(a)] * eq.J[static_cast<std::size_t>(b)].transpose();
-    meat += rho * (cross + cross.transpose());
-  };
-  for (int y = 0; y < kPatchSize; ++y) {
-    for (int x = 0; x < kPatchSize; ++x) {
-      const int i = y * kPatchSize + x;
-      if (x + 1 < kPatchSize) pair(i, i + 1, rho_x);
-      if (y + 1 < kPatchSize) pair(i, i + kPatchSize, rho_y);
-      if (x + 1 < kPatchSize && y + 1 < kPatchSize) pair(i, i + kPatchSize + 1, rho_x * rho_y);
-      if (x > 0 && y + 1 < kPatchSize) pair(i, i + kPatchSize - 1, rho_x * rho_y);
-    }
-  }
-  return meat;
-}
-
-// Lag-one correlation of the residual field along x (dx = 1) or y, clamped to [0, 0.45] (the truncated
-// separable model stays positive definite below 0.5).
-double lag_one_correlation(const NormalEquations& eq, int dx, int dy) {
-  double products = 0.0;
-  int pairs = 0;
-  for (int y = 0; y + dy < kPatchSize; ++y) {
-    for (int x = 0; x + dx < kPatchSize; ++x) {
-      products += eq.r[static_cast<std::size_t>(y * kPatchSize + x)] * eq.r[static_cast<std::size_t>((y + dy) * kPatchSize + x + dx)];
-      ++pairs;
-    }
-  }
-  if (!(eq.sum_r2 > 0.0) || pairs == 0) return 0.0;
-  const double rho = (products / pairs) / (eq.sum_r2 / eq.count);
-  return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
-}
 
 // The normal equations of the photometric fit at parameters theta (u, t, gain, offset).
 Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
@@ -118,17 +68,19 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       if (!(p.x() >= 1.0 && p.y() >= 1.0 && p.x() < image.width_px - 2.0 && p.y() < image.height_px - 2.0)) {
         return Status::kOutsideImage;
       }
-      const double value = bilinear(image, p.x(), p.y());
-      const Eigen::Vector2d g(0.5 * (bilinear(image, p.x() + 1.0, p.y()) - bilinear(image, p.x() - 1.0, p.y())),
-                              0.5 * (bilinear(image, p.x(), p.y() + 1.0) - bilinear(image, p.x(), p.y() - 1.0)));
+      const double value = sample_bilinear(image, p.x(), p.y());
+      const Eigen::Vector2d g(0.5 * (sample_bilinear(image, p.x() + 1.0, p.y()) - sample_bilinear(image, p.x() - 1.0, p.y())),
+                              0.5 * (sample_bilinear(image, p.x(), p.y() + 1.0) - sample_bilinear(image, p.x(), p.y() - 1.0)));
       const double T = patch[static_cast<std::size_t>(ty * kPatchSize + tx)];
       const double r = value - theta(4) * T - theta(5);
       Vector6d J;
       J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
       out->JtJ.selfadjointView<Eigen::Lower>().rankUpdate(J);
       out->Jtr += J * r;
-      out->J[static_cast<std::size_t>(ty * kPatchSize + tx)] = J;
-      out->r[static_cast<std::size_t>(ty * kPatchSize + tx)] = r;
+      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
+      out->rows.J[index] = J;
+      out->rows.r[index] = r;
+      out->rows.valid[index] = true;
       out->sum_r2 += r * r;
       ++out->count;
     }
@@ -190,7 +142,8 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   // correlations. White residuals give M = H.
   const double dof = eq.count - kParams;
   const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
-  const Matrix6d meat = correlated_meat(eq, lag_one_correlation(eq, 1, 0), lag_one_correlation(eq, 0, 1));
+  const Matrix6d meat =
+      correlated_information_meat(eq.rows, lag_one_correlation(eq.rows, 1, 0), lag_one_correlation(eq.rows, 0, 1));
   const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
   if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
   information = eq.JtJ * meat_ldlt.solve(eq.JtJ) / sigma2;
