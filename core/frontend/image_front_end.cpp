@@ -240,8 +240,6 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const double focal = focal_mean(intrinsics_);
   const double stride = config_.seed_stride_px;
   const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
-  // A new primitive's first match confirms its two-view match (confirm_spawns): it needs what a spawn needs.
-  const MatchConfig confirm{config_.spawn_ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
   // Occluders first: every primitive in front of the camera, pushed back by its uncertainty.
@@ -331,9 +329,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
       query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
       float best = 0.0f;
-      const bool confirming = config_.confirm_spawns && p.observation_count == 0;
-      outcome = search_window(image, tmpl, query, confirming ? confirm : match, scratch, &observed, &best,
-                              &fit_covariance);
+      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
