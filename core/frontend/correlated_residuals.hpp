@@ -65,30 +65,34 @@ double lag_one_correlation(const PatchResiduals<P>& fit, int dx, int dy) {
   return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
 }
 
-// J^T C J for the correlations above (J^T J when both are zero).
+// J^T C J for the correlations above (J^T J when both are zero): J^T J + P + P^T with P the sum over
+// pixels of J_i times the correlation-weighted rows of its right, lower and lower diagonal neighbours.
 template <int P>
 Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>& fit, double rho_x, double rho_y) {
   using Matrix = Eigen::Matrix<double, P, P>;
-  Matrix meat = Matrix::Zero();
-  auto pair = [&](std::size_t a, std::size_t b, double rho) {
-    if (!fit.valid[b]) return;
-    const Matrix cross = fit.J[a] * fit.J[b].transpose();
-    meat += rho * (cross + cross.transpose());
-  };
+  using Vector = Eigen::Matrix<double, P, 1>;
+  Matrix gram = Matrix::Zero();
+  Matrix cross = Matrix::Zero();
+  const double rho_xy = rho_x * rho_y;
   for (int y = 0; y < kPatchSize; ++y) {
     for (int x = 0; x < kPatchSize; ++x) {
       const std::size_t i = static_cast<std::size_t>(y * kPatchSize + x);
       if (!fit.valid[i]) continue;
-      meat += fit.J[i] * fit.J[i].transpose();
+      gram += fit.J[i] * fit.J[i].transpose();
+      Vector neighbours = Vector::Zero();
+      auto add = [&](std::size_t j, double rho) {
+        if (fit.valid[j]) neighbours += rho * fit.J[j];
+      };
       const bool right = x + 1 < kPatchSize;
       const bool down = y + 1 < kPatchSize;
-      if (right) pair(i, i + 1, rho_x);
-      if (down) pair(i, i + kPatchSize, rho_y);
-      if (right && down) pair(i, i + kPatchSize + 1, rho_x * rho_y);
-      if (x > 0 && down) pair(i, i + kPatchSize - 1, rho_x * rho_y);
+      if (right) add(i + 1, rho_x);
+      if (down) add(i + kPatchSize, rho_y);
+      if (right && down) add(i + kPatchSize + 1, rho_xy);
+      if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+      cross += fit.J[i] * neighbours.transpose();
     }
   }
-  return meat;
+  return gram + cross + cross.transpose();
 }
 
 }  // namespace vantage
