@@ -39,36 +39,48 @@ struct PatchResiduals {
   std::array<bool, kPatchPixels> valid{};
 };
 
-// Lag-one correlation of the residual field along (dx, dy) = (1, 0) or (0, 1), clamped to [0, 0.45]
-// (the truncated separable model stays positive definite below 0.5).
+// Lag-one correlations of the residual field between horizontal (*rho_x) and vertical (*rho_y)
+// neighbours, clamped to [0, 0.45] (the truncated separable model stays positive definite below 0.5).
 template <int P>
-double lag_one_correlation(const PatchResiduals<P>& fit, int dx, int dy) {
-  double products = 0.0;
+void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* rho_y) {
   double squares = 0.0;
-  int pairs = 0;
+  double products_x = 0.0;
+  double products_y = 0.0;
   int count = 0;
+  int pairs_x = 0;
+  int pairs_y = 0;
   for (int y = 0; y < kPatchSize; ++y) {
     for (int x = 0; x < kPatchSize; ++x) {
       const std::size_t i = static_cast<std::size_t>(y * kPatchSize + x);
       if (!fit.valid[i]) continue;
-      squares += fit.r[i] * fit.r[i];
+      const double r = fit.r[i];
+      squares += r * r;
       ++count;
-      if (x + dx >= kPatchSize || y + dy >= kPatchSize) continue;
-      const std::size_t j = static_cast<std::size_t>((y + dy) * kPatchSize + x + dx);
-      if (!fit.valid[j]) continue;
-      products += fit.r[i] * fit.r[j];
-      ++pairs;
+      if (x + 1 < kPatchSize && fit.valid[i + 1]) {
+        products_x += r * fit.r[i + 1];
+        ++pairs_x;
+      }
+      if (y + 1 < kPatchSize && fit.valid[i + kPatchSize]) {
+        products_y += r * fit.r[i + kPatchSize];
+        ++pairs_y;
+      }
     }
   }
-  if (!(squares > 0.0) || pairs == 0) return 0.0;
-  const double rho = (products / pairs) / (squares / count);
-  return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+  auto clamp = [&](double products, int pairs) {
+    if (!(squares > 0.0) || pairs == 0) return 0.0;
+    const double rho = (products / pairs) / (squares / count);
+    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+  };
+  *rho_x = clamp(products_x, pairs_x);
+  *rho_y = clamp(products_y, pairs_y);
 }
 
 // J^T C J for the correlations above (J^T J when both are zero): J^T J + P + P^T with P the sum over
 // pixels of J_i times the correlation-weighted rows of its right, lower and lower diagonal neighbours.
+// J^T J itself goes to *gram_out when it is not null.
 template <int P>
-Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>& fit, double rho_x, double rho_y) {
+Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>& fit, double rho_x, double rho_y,
+                                                         Eigen::Matrix<double, P, P>* gram_out = nullptr) {
   using Matrix = Eigen::Matrix<double, P, P>;
   using Vector = Eigen::Matrix<double, P, 1>;
   Matrix gram = Matrix::Zero();
@@ -92,6 +104,7 @@ Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>&
       cross += fit.J[i] * neighbours.transpose();
     }
   }
+  if (gram_out != nullptr) *gram_out = gram;
   return gram + cross + cross.transpose();
 }
 

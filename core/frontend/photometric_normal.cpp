@@ -142,8 +142,10 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   // correlations. White residuals give M = H.
   const double dof = eq.count - kParams;
   const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
-  const Matrix6d meat =
-      correlated_information_meat(eq.rows, lag_one_correlation(eq.rows, 1, 0), lag_one_correlation(eq.rows, 0, 1));
+  double rho_x = 0.0;
+  double rho_y = 0.0;
+  lag_one_correlations(eq.rows, &rho_x, &rho_y);
+  const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
   const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
   if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
   information = eq.JtJ * meat_ldlt.solve(eq.JtJ) / sigma2;
