@@ -320,7 +320,6 @@ SceneRun run_scene(const Scene& scene) {
   out.tracked = evaluate_front_end(scene, config, 3, matched, predicted);
   out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations);
   out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations);
-  print_match_consistency(scene, config, 2);
   print_match_consistency(scene, config, scene.views.size() - 1);
   print(scene.name, "front end, all primitives", out.all);
   print(scene.name, "front end, >= 3 updates", out.tracked);
