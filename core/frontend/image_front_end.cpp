@@ -33,6 +33,19 @@ double focal_mean(const PinholeIntrinsics& k) { return 0.5 * (k.fx_px + k.fy_px)
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
+// The reference patch seen through the plane-induced map A (warped when A differs from identity by more
+// than min_deviation), and B: where a shift of the patch's feature shows in this image.
+void reference_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
+                        double min_deviation, NccTemplate* tmpl, Eigen::Matrix2d* B) {
+  if ((A - Eigen::Matrix2d::Identity()).norm() > min_deviation) {
+    warp_patch_template(patch, A, tmpl);
+    *B = A.inverse();
+  } else {
+    make_template(patch, tmpl);
+    B->setIdentity();
+  }
+}
+
 }  // namespace
 
 Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
@@ -298,14 +311,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
         continue;
       }
     }
-    // B: where a shift of the reference patch's feature shows in this image (through the warp, if any).
-    Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
-    if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
-      warp_patch_template(p.patch, A, &tmpl);
-      B = A.inverse();
-    } else {
-      make_template(p.patch, &tmpl);
-    }
+    Eigen::Matrix2d B;
+    reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
     std::array<Eigen::Matrix2d, 2> dA;
@@ -416,13 +423,8 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
   Eigen::Matrix2d A;
   if (!ok(plane_affine(p.X_world, estimate.normal_world, creating, view, intrinsics_, &A))) return false;
   NccTemplate tmpl;
-  Eigen::Matrix2d B_new = Eigen::Matrix2d::Identity();
-  if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
-    warp_patch_template(p.patch, A, &tmpl);
-    B_new = A.inverse();
-  } else {
-    make_template(p.patch, &tmpl);
-  }
+  Eigen::Matrix2d B_new;
+  reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B_new);
   if (tmpl.valid_count < kPatchPixels / 2) return false;
   Eigen::Vector2d uv = *observed;
   Eigen::Matrix2d covariance;
