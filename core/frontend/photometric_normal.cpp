@@ -75,7 +75,7 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       const double r = value - theta(4) * T - theta(5);
       Vector6d J;
       J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
-      out->JtJ.selfadjointView<Eigen::Lower>().rankUpdate(J);
+      out->JtJ.noalias() += J * J.transpose();
       out->Jtr += J * r;
       const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
       out->rows.J[index] = J;
@@ -85,7 +85,6 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       ++out->count;
     }
   }
-  out->JtJ = out->JtJ.selfadjointView<Eigen::Lower>();
   return Status::kOk;
 }
 
@@ -134,6 +133,8 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     constexpr double kMaxTiltStep = 0.3;
     if (tilt_step > kMaxTiltStep) step *= kMaxTiltStep / tilt_step;
     theta += step;
+    // Converged: the system just solved is the solution's to well within its own uncertainty.
+    if (step.head<2>().norm() < 1e-3 && step.segment<2>(2).norm() < 1e-4) break;
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   // The residuals of a resampled patch are not white (bilinear interpolation mixes neighbouring pixels'
