@@ -343,9 +343,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       reject_observation(i, centre_cell, pool, report);
       continue;
     }
-    // A poorly known normal: estimate it from this view's appearance, then match with its warp.
+    // A poorly known normal that matters here (its warp covariance outweighs the match's own): estimate it
+    // from this view's appearance, then match with its warp.
     if (config_.photometric_normal && have_creating &&
-        normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance) {
+        normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance &&
+        warp_covariance.trace() > measurement_R(fit_covariance).trace()) {
       (void)refine_normal_photometric(i, image, creating, view, pool, &tmpl, &B, &warp_covariance, &observed,
                                       &fit_covariance);
     }

@@ -80,9 +80,10 @@ struct FrontEndConfig {
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
   // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
-  // variance exceeds photometric_normal_min_tilt_variance gets its normal estimated from the warp between
-  // its creating view and this one (MAP with its current normal as the prior), and is matched again with
-  // the template warped by it. Needs adaptive_R and subpixel_iterations >= 1.
+  // variance exceeds photometric_normal_min_tilt_variance, and whose warp covariance (the normal's
+  // uncertainty in this match) outweighs the match's own R, gets its normal estimated from the warp
+  // between its creating view and this one, and is matched again with the template warped by it. Needs
+  // adaptive_R and subpixel_iterations >= 1.
   bool photometric_normal = true;
   double photometric_normal_min_tilt_variance = 0.01;
   // The reference patch's own pixel noise shifts the feature every match of a primitive looks for by the
