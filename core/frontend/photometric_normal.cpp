@@ -3,7 +3,6 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include "core/frontend/correlated_residuals.hpp"
 #include "core/frontend/patch_warp.hpp"
@@ -28,6 +27,17 @@ Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, c
   if (!ok(status)) return status == Status::kInvalidArgument ? Status::kBehindCamera : status;
   *M = A.inverse();
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
+}
+
+// LDLT solves one column at a time: a matrix right-hand side takes Eigen's blocked solver, which
+// references the heap even for fixed sizes.
+Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
+  Matrix6d out;
+  for (int j = 0; j < kParams; ++j) {
+    const Vector6d column = rhs.col(j);
+    out.col(j) = ldlt.solve(column);
+  }
+  return out;
 }
 
 struct NormalEquations {
@@ -149,17 +159,20 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
   const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
   if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
-  information = eq.JtJ * meat_ldlt.solve(eq.JtJ) / sigma2;
+  information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
   const Eigen::LDLT<Matrix6d> ldlt(information);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  const Matrix6d covariance = ldlt.solve(Matrix6d::Identity());
+  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
   const Eigen::Matrix2d tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(tilt_covariance, Eigen::EigenvaluesOnly);
-  const double largest = eigen.eigenvalues()(1);
-  if (!covariance.allFinite() || !(eigen.eigenvalues()(0) > 0.0)) return Status::kNotSpd;
+  // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
+  const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));
+  const double half_difference = 0.5 * (tilt_covariance(0, 0) - tilt_covariance(1, 1));
+  const double radius = std::sqrt(half_difference * half_difference + tilt_covariance(0, 1) * tilt_covariance(0, 1));
+  const double largest = half_trace + radius;
+  if (!covariance.allFinite() || !(half_trace - radius > 0.0)) return Status::kNotSpd;
   estimate->normal_world = (n0 + theta(2) * e1 + theta(3) * e2).normalized().cast<float>();
   estimate->tilt_covariance = tilt_covariance;
   estimate->tilt_variance = largest;
