@@ -29,8 +29,8 @@ Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, c
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
-// LDLT solves one column at a time: a matrix right-hand side takes Eigen's blocked solver, which
-// references the heap even for fixed sizes.
+// LDLT solves one column at a time (vector solves; a matrix right-hand side goes through Eigen's blocked
+// triangular solver, more code for a 6x6).
 Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
   Matrix6d out;
   for (int j = 0; j < kParams; ++j) {
