@@ -30,6 +30,12 @@ bool finite_positive(double value) { return std::isfinite(value) && value > 0.0;
 
 double focal_mean(const PinholeIntrinsics& k) { return 0.5 * (k.fx_px + k.fy_px); }
 
+// floor() for values well inside the int range, without the library call's generality.
+std::int32_t floor_to_int(double value) {
+  const std::int32_t truncated = static_cast<std::int32_t>(value);
+  return truncated - (value < truncated ? 1 : 0);
+}
+
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
@@ -267,6 +273,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       (void)depth_buffer_.splat((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
     }
   }
+  NccTemplate tmpl;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i)) continue;
     Primitive& p = pool[i];
@@ -288,24 +295,33 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       cell_depth_[centre_cell] = static_cast<float>(depth);
     }
     const double reach = radius_px + 0.5 * stride;
-    const std::int32_t cx0 = static_cast<std::int32_t>(std::floor((predicted.x() - reach) / stride));
-    const std::int32_t cx1 = static_cast<std::int32_t>(std::floor((predicted.x() + reach) / stride));
-    const std::int32_t cy0 = static_cast<std::int32_t>(std::floor((predicted.y() - reach) / stride));
-    const std::int32_t cy1 = static_cast<std::int32_t>(std::floor((predicted.y() + reach) / stride));
+    // predicted is inside the image (predicted_in_view), reach a few cells: floor_to_int is exact here.
+    const double inv_stride = 1.0 / stride;
+    const std::int32_t cx0 = floor_to_int((predicted.x() - reach) * inv_stride);
+    const std::int32_t cx1 = floor_to_int((predicted.x() + reach) * inv_stride);
+    const std::int32_t cy0 = floor_to_int((predicted.y() - reach) * inv_stride);
+    const std::int32_t cy1 = floor_to_int((predicted.y() + reach) * inv_stride);
+    const double reach2 = reach * reach;
     for (std::int32_t cy = cy0 < 0 ? 0 : cy0; cy <= cy1 && cy < cells_y_; ++cy) {
+      const double dy = (cy + 0.5) * stride - 0.5 - predicted.y();
       for (std::int32_t cx = cx0 < 0 ? 0 : cx0; cx <= cx1 && cx < cells_x_; ++cx) {
-        const Eigen::Vector2d centre((cx + 0.5) * stride - 0.5, (cy + 0.5) * stride - 0.5);
-        if ((centre - predicted).norm() <= reach) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
+        const double dx = (cx + 0.5) * stride - 0.5 - predicted.x();
+        if (dx * dx + dy * dy <= reach2) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
       }
     }
 
-    // The reference patch, warped by the primitive's plane when the creating view saw it differently.
-    NccTemplate tmpl;
+    // The reference patch, warped by the primitive's plane when the creating view saw it differently
+    // (tmpl, declared before the loop: both template makers write every field).
     Viewpoint creating;
     Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
+    std::array<Eigen::Matrix2d, 2> dA;
     const bool have_creating = ok(view_pose(p.creating_view, &creating));
     if (have_creating) {
-      if (!ok(plane_affine(p.X_world, p.normal_world, creating, view, intrinsics_, &A))) {
+      // The map and its tilt derivatives from the creating view's Jacobian and this view's (H).
+      Eigen::Vector2d in_creating;
+      Eigen::Matrix<double, 2, 3> H_creating;
+      if (!ok(project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating)) ||
+          !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         reject_observation(i, centre_cell, pool, report);
         continue;
@@ -315,10 +331,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
-    std::array<Eigen::Matrix2d, 2> dA;
-    if (config_.model_normal_uncertainty && have_creating &&
-        ok(plane_affine_tilt_derivatives(p.X_world, p.normal_world, creating, view, intrinsics_, A, &dA))) {
-      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
+    if (config_.model_normal_uncertainty && have_creating) {
+      TemplateGradientMoments moments;
+      template_gradient_moments(tmpl, &moments);
+      warp_covariance = warp_shift_covariance(moments, A, dA, normal_tilt_variance(i));
     }
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;

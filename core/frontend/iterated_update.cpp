@@ -11,13 +11,39 @@ namespace {
 // The pieces are separate, not inlined, functions: Eigen's temporaries in one frame outgrow the core's
 // 16 KB frame limit under ASan.
 
-// Innovation covariance S and gain K at a linearization H (consider form, see the header).
-[[gnu::noinline]] void innovation_gain(const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
+// Innovation covariance S, its inverse and the gain K at a linearization H (consider form, see the
+// header). False when S is not positive definite.
+[[gnu::noinline]] bool innovation_gain(const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                        const Eigen::Matrix<double, 3, 2>& CB, const Eigen::Matrix2d& R_total,
-                                       Eigen::Matrix2d* S, Eigen::Matrix<double, 3, 2>* K) {
+                                       Eigen::Matrix2d* S_inv, Eigen::Matrix<double, 3, 2>* K) {
+  const Eigen::Matrix<double, 3, 2> SigmaHt = Sigma * H.transpose();
   const Eigen::Matrix2d HCB = H * CB;
-  *S = H * Sigma * H.transpose() - HCB - HCB.transpose() + R_total;
-  *K = (Sigma * H.transpose() - CB) * S->inverse();
+  const Eigen::Matrix2d HSH = H * SigmaHt;
+  // Symmetric 2x2: explicit inverse.
+  const double s00 = HSH(0, 0) - 2.0 * HCB(0, 0) + R_total(0, 0);
+  const double s11 = HSH(1, 1) - 2.0 * HCB(1, 1) + R_total(1, 1);
+  const double s01 = 0.5 * (HSH(0, 1) + HSH(1, 0)) - HCB(0, 1) - HCB(1, 0) + 0.5 * (R_total(0, 1) + R_total(1, 0));
+  const double det = s00 * s11 - s01 * s01;
+  if (!(s00 > 0.0) || !(det > 0.0)) return false;
+  const double inv_det = 1.0 / det;
+  *S_inv << s11 * inv_det, -s01 * inv_det, -s01 * inv_det, s00 * inv_det;
+  *K = (SigmaHt - CB) * *S_inv;
+  return true;
+}
+
+// Sylvester's criterion for a symmetric 3x3 (the leading minors are the LLT's pivots' products), with
+// the same finiteness and symmetry checks as is_spd, for a fraction of an LLT's cost.
+bool spd3(const Eigen::Matrix3d& M) {
+  if (!M.allFinite()) return false;
+  const double scale = std::abs(M(0, 0)) + std::abs(M(1, 1)) + std::abs(M(2, 2));
+  if (!(scale > 0.0)) return false;
+  const double tolerance = 1e-9 * scale;
+  if (std::abs(M(0, 1) - M(1, 0)) > tolerance || std::abs(M(0, 2) - M(2, 0)) > tolerance ||
+      std::abs(M(1, 2) - M(2, 1)) > tolerance) {
+    return false;
+  }
+  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
 }
 
 // Joseph-form covariance for gain K at H, valid for any K (consider form, see the header).
@@ -59,7 +85,7 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
     ++counts.rejected_inputs;
     return Status::kNonFiniteInput;
   }
-  if (!is_spd(primitive.Sigma_world)) {
+  if (!spd3(primitive.Sigma_world)) {
     ++counts.rejected_inputs;
     return Status::kNotSpd;
   }
@@ -68,38 +94,51 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
   const Eigen::Matrix<double, 3, 2> CB = common->cross_covariance * common->B.transpose();  // C B^T
   const Eigen::Matrix2d R_total = common->B * common->covariance_px2 * common->B.transpose() + config.R_px2;
   // Gauss-Newton on the MAP cost: linearize at X (one projection per pass, so the frame stays small under
-  // ASan), gate on the first pass (at the prior), stop after the linearization that follows the last step.
+  // ASan), gate on the first pass (at the prior). It stops when a step is negligible against the prior's
+  // spread (Mahalanobis length below kStepSigmas: H and K at the point it started from are then those at
+  // the estimate, to that fraction of a standard deviation), or after max_iterations steps with a last
+  // linearization at the estimate.
+  constexpr double kStepSigmas = 1e-3;
   const int iterations = max_iterations < 1 ? 1 : max_iterations;
+  Eigen::Matrix3d Sigma_inv;  // for the step's length; only when there is a second step to measure
+  bool have_Sigma_inv = false;
   Eigen::Vector3d X = X0;
   Eigen::Vector2d predicted;
   Eigen::Matrix<double, 2, 3> H;
-  Eigen::Matrix2d S;
+  Eigen::Matrix2d S_inv;
   Eigen::Matrix<double, 3, 2> K;
-  bool converged = false;
   for (int iteration = 0;; ++iteration) {
     if (!ok(project_with_jacobian(X, view, intrinsics, &predicted, &H))) {
       ++counts.rejected_inputs;
       return Status::kBehindCamera;
     }
-    innovation_gain(H, Sigma, CB, R_total, &S, &K);
+    if (!innovation_gain(H, Sigma, CB, R_total, &S_inv, &K)) {
+      ++counts.rejected_inputs;
+      return Status::kNotSpd;
+    }
     if (iteration == 0) {
       const Eigen::Vector2d innovation = observation_px - predicted;
-      if (!(innovation.dot(S.inverse() * innovation) <= config.gate_chi2)) {
+      if (!(innovation.dot(S_inv * innovation) <= config.gate_chi2)) {
         ++counts.gated_outliers;
         return Status::kGatedOutlier;
       }
     }
-    if (converged || iteration == iterations) break;
-    const Eigen::Vector3d next = X0 + K * (observation_px - predicted - H * (X0 - X));
-    // Converged when the step is far below the prior's spread along it.
-    converged = (next - X).squaredNorm() <= 1e-6 * Sigma.trace();
-    X = next;
+    if (iteration == iterations) break;
+    const Eigen::Vector3d step = X0 + K * (observation_px - predicted - H * (X0 - X)) - X;
+    X += step;
+    // The first step is the EKF's own; the later ones are the relinearization's corrections.
+    if (iteration == 0) continue;
+    if (!have_Sigma_inv) {
+      Sigma_inv = Sigma.inverse();
+      have_Sigma_inv = true;
+    }
+    if (step.dot(Sigma_inv * step) <= kStepSigmas * kStepSigmas) break;
   }
   // H and K are those at the last linearization point.
   const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
   const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
   const Eigen::Matrix3d Sigma_new = 0.5 * (joseph + joseph.transpose());
-  if (!X.allFinite() || !cross.allFinite() || !is_spd(Sigma_new)) {
+  if (!X.allFinite() || !cross.allFinite() || !spd3(Sigma_new)) {
     ++counts.rejected_inputs;
     return Status::kNotSpd;
   }

@@ -1,15 +1,21 @@
 #include "core/frontend/patch_warp.hpp"
 
 #include <cmath>
+#include <cstring>
+
+#include "core/frontend/float4.hpp"
 
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
 
-Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
-                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
-  const Eigen::Vector3d n = normal_world.cast<double>();
-  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
+Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, const Eigen::Matrix<double, 2, 3>& H_target,
+                                   const Eigen::Vector3f& normal_world, Eigen::Matrix2d* A_ref_per_target,
+                                   std::array<Eigen::Matrix2d, 2>* dA) {
+  const Eigen::Vector3d n_raw = normal_world.cast<double>();
+  const double length = n_raw.norm();
+  if (!std::isfinite(length) || std::abs(length - 1.0) > 1e-3) return Status::kInvalidArgument;
+  const Eigen::Vector3d n = n_raw / length;
   // Any orthonormal basis of the plane.
   const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
   const Eigen::Vector3d e1 = n.cross(helper).normalized();
@@ -17,6 +23,29 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   Eigen::Matrix<double, 3, 2> basis;
   basis.col(0) = e1;
   basis.col(1) = e2;
+  const Eigen::Matrix2d J_ref = H_ref * basis;        // pixels in the reference per unit on the plane
+  const Eigen::Matrix2d J_target = H_target * basis;  // pixels in the target per unit on the plane
+  const double det = J_target.determinant();
+  // Edge-on: the plane's image in the target has (almost) no area.
+  if (!(std::abs(det) > 1e-9 * J_target.squaredNorm())) return Status::kInvalidArgument;
+  const Eigen::Matrix2d J_target_inv = J_target.inverse();
+  const Eigen::Matrix2d A = J_ref * J_target_inv;
+  if (!A.allFinite()) return Status::kInvalidArgument;
+  *A_ref_per_target = A;
+  if (dA != nullptr) {
+    const Eigen::Vector2d w = H_ref * n - A * (H_target * n);
+    (*dA)[0] = -w * J_target_inv.row(0);
+    (*dA)[1] = -w * J_target_inv.row(1);
+  }
+  return Status::kOk;
+}
+
+namespace {
+
+// plane_affine_from_jacobians with the Jacobians of X's projections into both views.
+Status plane_affine_projected(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
+                              const Viewpoint& reference, const Viewpoint& target, const PinholeIntrinsics& intrinsics,
+                              Eigen::Matrix2d* A_ref_per_target, std::array<Eigen::Matrix2d, 2>* dA) {
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H_ref;
   Eigen::Matrix<double, 2, 3> H_target;
@@ -24,103 +53,249 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   if (!ok(status)) return status;
   status = project_with_jacobian(X_world, target, intrinsics, &unused, &H_target);
   if (!ok(status)) return status;
-  const Eigen::Matrix2d J_ref = H_ref * basis;        // pixels in the reference per unit on the plane
-  const Eigen::Matrix2d J_target = H_target * basis;  // pixels in the target per unit on the plane
-  const double det = J_target.determinant();
-  // Edge-on: the plane's image in the target has (almost) no area.
-  if (!(std::abs(det) > 1e-9 * J_target.squaredNorm())) return Status::kInvalidArgument;
-  *A_ref_per_target = J_ref * J_target.inverse();
-  return A_ref_per_target->allFinite() ? Status::kOk : Status::kInvalidArgument;
+  return plane_affine_from_jacobians(H_ref, H_target, normal_world, A_ref_per_target, dA);
+}
+
+}  // namespace
+
+Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world, const Viewpoint& reference,
+                    const Viewpoint& target, const PinholeIntrinsics& intrinsics, Eigen::Matrix2d* A_ref_per_target) {
+  const Eigen::Vector3d n = normal_world.cast<double>();
+  if (!n.allFinite() || std::abs(n.norm() - 1.0) > 1e-3) return Status::kInvalidArgument;
+  return plane_affine_projected(X_world, normal_world, reference, target, intrinsics, A_ref_per_target, nullptr);
 }
 
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
                          NccTemplate* out) {
-  std::array<float, kPatchPixels> gray{};
-  std::array<float, kPatchPixels> mask{};
-  constexpr double kLimit = kPatchRadius;  // the stored patch covers offsets [-r, r]
+  static_assert(kPatchSize == 7, "two four-lane groups per template row");
+  using Int4 = std::int32_t __attribute__((vector_size(16)));
+  // Float, four target pixels at a time: the values are gray levels, the offsets a few pixels.
+  alignas(16) float source[64];
+  bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, source, 64);
+  // Row-major p x p plus one lane: the last group of a row spills into the next row's first pixel,
+  // which that row's first group then writes.
+  alignas(16) float gray[kPatchPixels + 3] = {};
+  alignas(16) float mask[kPatchPixels + 3] = {};
+  const Float4 limit = splat4(static_cast<float>(kPatchRadius));  // the stored patch covers offsets [-r, r]
+  const Float4 a00 = splat4(static_cast<float>(A(0, 0)));
+  const Float4 a01 = splat4(static_cast<float>(A(0, 1)));
+  const Float4 a10 = splat4(static_cast<float>(A(1, 0)));
+  const Float4 a11 = splat4(static_cast<float>(A(1, 1)));
+  const Float4 zero = splat4(0.0f);
+  const Float4 dx_of_group[2] = {Float4{-3.0f, -2.0f, -1.0f, 0.0f}, Float4{1.0f, 2.0f, 3.0f, 3.0f}};
+  const Int4 lane_used[2] = {Int4{-1, -1, -1, -1}, Int4{-1, -1, -1, 0}};
+  const Int4 last_cell = Int4{kPatchSize - 2, kPatchSize - 2, kPatchSize - 2, kPatchSize - 2};
   for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      const Eigen::Vector2d offset = A * Eigen::Vector2d(tx - kPatchRadius, ty - kPatchRadius);
-      const int i = ty * kPatchSize + tx;
-      if (!(std::abs(offset.x()) <= kLimit) || !(std::abs(offset.y()) <= kLimit)) continue;
-      const double sx = offset.x() + kPatchRadius;
-      const double sy = offset.y() + kPatchRadius;
-      int x0 = static_cast<int>(std::floor(sx));
-      int y0 = static_cast<int>(std::floor(sy));
-      if (x0 > kPatchSize - 2) x0 = kPatchSize - 2;
-      if (y0 > kPatchSize - 2) y0 = kPatchSize - 2;
-      const double fx = sx - x0;
-      const double fy = sy - y0;
-      const double top = (1.0 - fx) * patch[y0 * kPatchSize + x0] + fx * patch[y0 * kPatchSize + x0 + 1];
-      const double bottom = (1.0 - fx) * patch[(y0 + 1) * kPatchSize + x0] + fx * patch[(y0 + 1) * kPatchSize + x0 + 1];
-      gray[i] = static_cast<float>((1.0 - fy) * top + fy * bottom);
-      mask[i] = 1.0f;
+    const Float4 dy = splat4(static_cast<float>(ty - kPatchRadius));
+    for (int group = 0; group < 2; ++group) {
+      const Float4 ox = a00 * dx_of_group[group] + a01 * dy;
+      const Float4 oy = a10 * dx_of_group[group] + a11 * dy;
+      const Int4 inside = (ox <= limit) & (ox >= -limit) & (oy <= limit) & (oy >= -limit) & lane_used[group];
+      // Outside lanes sample the corner (finite, then masked).
+      const Float4 sx = inside ? ox + limit : zero;
+      const Float4 sy = inside ? oy + limit : zero;
+      Int4 x0 = __builtin_convertvector(sx, Int4);  // sx >= 0: truncation is floor
+      Int4 y0 = __builtin_convertvector(sy, Int4);
+      x0 = x0 > last_cell ? last_cell : x0;
+      y0 = y0 > last_cell ? last_cell : y0;
+      const Float4 fx = sx - __builtin_convertvector(x0, Float4);
+      const Float4 fy = sy - __builtin_convertvector(y0, Float4);
+      const Int4 base = y0 * kPatchSize + x0;
+      Float4 top_left;
+      Float4 top_right;
+      Float4 bottom_left;
+      Float4 bottom_right;
+      for (int lane = 0; lane < 4; ++lane) {
+        const float* s0 = &source[base[lane]];
+        top_left[lane] = s0[0];
+        top_right[lane] = s0[1];
+        bottom_left[lane] = s0[kPatchSize];
+        bottom_right[lane] = s0[kPatchSize + 1];
+      }
+      const Float4 top = top_left + fx * (top_right - top_left);
+      const Float4 bottom = bottom_left + fx * (bottom_right - bottom_left);
+      const int i = ty * kPatchSize + 4 * group;
+      store4(&gray[i], inside ? top + fy * (bottom - top) : zero);
+      store4(&mask[i], inside ? splat4(1.0f) : zero);
     }
   }
-  make_template(gray, mask, out);
+  std::array<float, kPatchPixels> gray_out;
+  std::array<float, kPatchPixels> mask_out;
+  std::memcpy(gray_out.data(), gray, sizeof gray_out);
+  std::memcpy(mask_out.data(), mask, sizeof mask_out);
+  make_template(gray_out, mask_out, out);
 }
 
 Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
                                      const Viewpoint& reference, const Viewpoint& target,
                                      const PinholeIntrinsics& intrinsics, const Eigen::Matrix2d& A_ref_per_target,
                                      std::array<Eigen::Matrix2d, 2>* dA) {
-  const Eigen::Vector3d n = normal_world.cast<double>().normalized();
+  (void)A_ref_per_target;  // recomputed with the Jacobians: the same map
+  const Eigen::Vector3f n = normal_world.normalized();
   if (!n.allFinite()) return Status::kInvalidArgument;
-  const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d axes[2] = {n.cross(helper).normalized(), n.cross(n.cross(helper).normalized())};
-  constexpr double kStep = 1e-3;  // rad; float normals resolve ~1e-7
-  for (int k = 0; k < 2; ++k) {
-    const Eigen::Vector3f tilted = (n + kStep * axes[k]).normalized().cast<float>();
-    Eigen::Matrix2d A_tilted;
-    const Status status = plane_affine(X_world, tilted, reference, target, intrinsics, &A_tilted);
-    if (!ok(status)) return status;
-    (*dA)[static_cast<std::size_t>(k)] = (A_tilted - A_ref_per_target) / kStep;
+  Eigen::Matrix2d A;
+  return plane_affine_projected(X_world, n, reference, target, intrinsics, &A, dA);
+}
+
+namespace {
+
+// The moments from the lane sums of g g^T (xx, xy, yy) of the two lane groups of each row (columns
+// x = -3..0 and 1..4) and the running sums of their cumulative row sums Q (sum_rows P_k =
+// sum_y (4 - y) r_y, so My = 4 G - Q), all scaled by `scale`.
+void moments_from_lanes(const Float4 (&g_acc)[2][3], const Float4 (&q_acc)[2][3], double scale,
+                        TemplateGradientMoments* out) {
+  const Float4 x_of_lane[2] = {Float4{-3.0f, -2.0f, -1.0f, 0.0f}, Float4{1.0f, 2.0f, 3.0f, 4.0f}};
+  double G[3];
+  double Mx[3];
+  double My[3];
+  for (int j = 0; j < 3; ++j) {
+    const double g = sum_lanes(g_acc[0][j] + g_acc[1][j]);
+    Mx[j] = scale * sum_lanes(g_acc[0][j] * x_of_lane[0] + g_acc[1][j] * x_of_lane[1]);
+    My[j] = scale * (4.0 * g - sum_lanes(q_acc[0][j] + q_acc[1][j]));
+    G[j] = scale * g;
   }
-  return Status::kOk;
+  out->G << G[0], G[1], G[1], G[2];
+  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
+  out->My << My[0], My[1], My[1], My[2];
+}
+
+constexpr int kFrameStride = 12;  // row stride of the framed copies: the second lane group's neighbours fit
+constexpr int kFrameRows = kPatchSize + 2;
+
+// No pixel masked: extrapolating the frame linearly (v_-1 = 2 v_0 - v_1) turns the one-sided
+// differences at the border into central ones, so g = (v_f - v_b) / 2 everywhere (computed as 2 g).
+void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  alignas(16) float v[kFrameRows * kFrameStride];
+  // Read but not written below: the lane past the frame (column 9) and the frame rows' corners (columns 0
+  // and 8); all multiplied by zero, they only need to be finite.
+  for (int y = 0; y < kFrameRows; ++y) v[y * kFrameStride + kPatchSize + 2] = 0.0f;
+  v[0] = v[kPatchSize + 1] = 0.0f;
+  v[(kFrameRows - 1) * kFrameStride] = v[(kFrameRows - 1) * kFrameStride + kPatchSize + 1] = 0.0f;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    float* row = &v[(ty + 1) * kFrameStride];
+    std::memcpy(row + 1, &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)], kPatchSize * sizeof(float));
+    row[0] = 2.0f * row[1] - row[2];
+    row[kPatchSize + 1] = 2.0f * row[kPatchSize] - row[kPatchSize - 1];
+  }
+  for (int x = 1; x <= kPatchSize; ++x) {
+    v[x] = 2.0f * v[kFrameStride + x] - v[2 * kFrameStride + x];
+    v[(kFrameRows - 1) * kFrameStride + x] =
+        2.0f * v[(kFrameRows - 2) * kFrameStride + x] - v[(kFrameRows - 3) * kFrameStride + x];
+  }
+  // The eighth lane of each row (the frame column) must add nothing. Lane sums of g g^T per lane group
+  // (x = -3..0 and 1..4) and the row-weighted sum for My, in registers.
+  const Float4 last_lane_off = Float4{1.0f, 1.0f, 1.0f, 0.0f};
+  Float4 xx0 = splat4(0.0f), xy0 = xx0, yy0 = xx0, xx1 = xx0, xy1 = xx0, yy1 = xx0;
+  Float4 xx_y = xx0, xy_y = xx0, yy_y = xx0;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    const int c0 = (ty + 1) * kFrameStride + 1;
+    const int c1 = c0 + 4;
+    const Float4 gx0 = load4(&v[c0 + 1]) - load4(&v[c0 - 1]);
+    const Float4 gy0 = load4(&v[c0 + kFrameStride]) - load4(&v[c0 - kFrameStride]);
+    const Float4 gx1 = (load4(&v[c1 + 1]) - load4(&v[c1 - 1])) * last_lane_off;
+    const Float4 gy1 = (load4(&v[c1 + kFrameStride]) - load4(&v[c1 - kFrameStride])) * last_lane_off;
+    const Float4 pxx0 = gx0 * gx0, pxy0 = gx0 * gy0, pyy0 = gy0 * gy0;
+    const Float4 pxx1 = gx1 * gx1, pxy1 = gx1 * gy1, pyy1 = gy1 * gy1;
+    xx0 += pxx0;
+    xy0 += pxy0;
+    yy0 += pyy0;
+    xx1 += pxx1;
+    xy1 += pxy1;
+    yy1 += pyy1;
+    const Float4 y = splat4(static_cast<float>(ty - kPatchRadius));
+    xx_y += y * (pxx0 + pxx1);
+    xy_y += y * (pxy0 + pxy1);
+    yy_y += y * (pyy0 + pyy1);
+  }
+  const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
+  const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
+  constexpr double kQuarter = 0.25;  // (2 g)^2
+  const double G[3] = {kQuarter * sum_lanes(xx0 + xx1), kQuarter * sum_lanes(xy0 + xy1), kQuarter * sum_lanes(yy0 + yy1)};
+  const double Mx[3] = {kQuarter * sum_lanes(xx0 * x0 + xx1 * x1), kQuarter * sum_lanes(xy0 * x0 + xy1 * x1),
+                        kQuarter * sum_lanes(yy0 * x0 + yy1 * x1)};
+  const double My[3] = {kQuarter * sum_lanes(xx_y), kQuarter * sum_lanes(xy_y), kQuarter * sum_lanes(yy_y)};
+  out->G << G[0], G[1], G[1], G[2];
+  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
+  out->My << My[0], My[1], My[1], My[2];
+}
+
+}  // namespace
+
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  static_assert(kPatchSize == 7, "two four-lane groups per template row");
+  if (tmpl.valid_count == kPatchPixels) {
+    unmasked_moments(tmpl, out);
+    return;
+  }
+  // The template and its mask inside a frame of masked zeros, so every pixel has both neighbours on
+  // each axis and the one-sided rule is arithmetic: with m_f, m_b the neighbours' masks,
+  // g = (m_f (v_f - v) + m_b (v - v_b)) / (m_f + m_b), and a pixel counts when it is valid and
+  // m_f + m_b > 0 on both axes. The eighth lane of each row is the frame: masked, it adds nothing.
+  alignas(16) float v[kFrameRows * kFrameStride] = {};
+  alignas(16) float m[kFrameRows * kFrameStride] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    std::memcpy(&v[(ty + 1) * kFrameStride + 1], &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+    std::memcpy(&m[(ty + 1) * kFrameStride + 1], &tmpl.mask[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+  }
+  // Masks as exactly 0 or 1 (make_template writes them so; a hand-made template may not).
+  for (int i = 0; i < kFrameRows * kFrameStride; i += 4) {
+    store4(&m[i], load4(&m[i]) > splat4(0.5f) ? splat4(1.0f) : splat4(0.0f));
+  }
+  Float4 g_acc[2][3] = {};
+  Float4 q_acc[2][3] = {};
+  const Float4 half = splat4(0.5f);
+  const Float4 one = splat4(1.0f);
+  const Float4 zero = splat4(0.0f);
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int group = 0; group < 2; ++group) {
+      const int c = (ty + 1) * kFrameStride + 1 + 4 * group;
+      const Float4 vc = load4(&v[c]);
+      const Float4 mxf = load4(&m[c + 1]);
+      const Float4 mxb = load4(&m[c - 1]);
+      const Float4 myf = load4(&m[c + kFrameStride]);
+      const Float4 myb = load4(&m[c - kFrameStride]);
+      const Float4 nx = mxf + mxb;  // in {0, 1, 2}
+      const Float4 ny = myf + myb;
+      const Float4 keep = ((nx > half) & (ny > half)) ? load4(&m[c]) : zero;
+      const Float4 scale_x = (nx > splat4(1.5f) ? half : one) * keep;
+      const Float4 scale_y = (ny > splat4(1.5f) ? half : one) * keep;
+      const Float4 gx = (mxf * (load4(&v[c + 1]) - vc) + mxb * (vc - load4(&v[c - 1]))) * scale_x;
+      const Float4 gy = (myf * (load4(&v[c + kFrameStride]) - vc) + myb * (vc - load4(&v[c - kFrameStride]))) * scale_y;
+      g_acc[group][0] += gx * gx;
+      g_acc[group][1] += gx * gy;
+      g_acc[group][2] += gy * gy;
+    }
+    for (int group = 0; group < 2; ++group) {
+      for (int j = 0; j < 3; ++j) q_acc[group][j] += g_acc[group][j];
+    }
+  }
+  moments_from_lanes(g_acc, q_acc, 1.0, out);
+}
+
+Eigen::Matrix2d warp_shift_covariance(const TemplateGradientMoments& moments, const Eigen::Matrix2d& A_ref_per_target,
+                                      const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance) {
+  const Eigen::Matrix2d A_inv = A_ref_per_target.inverse();
+  if (!A_inv.allFinite() || !(tilt_variance > 0.0)) return Eigen::Matrix2d::Zero();
+  const Eigen::Matrix2d& G = moments.G;
+  if (!(G.determinant() > 1e-12 * G.squaredNorm())) return Eigen::Matrix2d::Zero();
+  const Eigen::Matrix2d G_inv = G.inverse();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+  for (int k = 0; k < 2; ++k) {
+    // U_k = A^-1 dA_k displaces the template by U_k x at offset x; the least-squares shift is G^-1 b_k.
+    const Eigen::Matrix2d U = A_inv * dA[static_cast<std::size_t>(k)];
+    const Eigen::Vector2d shift = G_inv * (moments.Mx * U.col(0) + moments.My * U.col(1));
+    covariance += shift * shift.transpose();
+  }
+  return tilt_variance * covariance;
 }
 
 Eigen::Matrix2d warp_shift_covariance(const NccTemplate& tmpl, const Eigen::Matrix2d& A_ref_per_target,
                                       const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance) {
-  const Eigen::Matrix2d A_inv = A_ref_per_target.inverse();
-  if (!A_inv.allFinite() || !(tilt_variance > 0.0)) return Eigen::Matrix2d::Zero();
-  const Eigen::Matrix2d U[2] = {A_inv * dA[0], A_inv * dA[1]};  // displacement per unit tilt: U_k x
-  Eigen::Matrix2d G = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d b[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
-  auto valid = [&](int x, int y) {
-    return x >= 0 && y >= 0 && x < kPatchSize && y < kPatchSize && tmpl.mask[y * kPatchSize + x] > 0.5f;
-  };
-  auto value = [&](int x, int y) { return static_cast<double>(tmpl.values[y * kPatchSize + x]); };
-  // One-sided differences at the mask's edge, none where both sides are missing.
-  auto derivative = [&](int x, int y, int dx, int dy, double* out) {
-    const bool forward = valid(x + dx, y + dy);
-    const bool backward = valid(x - dx, y - dy);
-    if (forward && backward) {
-      *out = 0.5 * (value(x + dx, y + dy) - value(x - dx, y - dy));
-    } else if (forward) {
-      *out = value(x + dx, y + dy) - value(x, y);
-    } else if (backward) {
-      *out = value(x, y) - value(x - dx, y - dy);
-    } else {
-      return false;
-    }
-    return true;
-  };
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      if (!valid(tx, ty)) continue;
-      Eigen::Vector2d g;
-      if (!derivative(tx, ty, 1, 0, &g.x()) || !derivative(tx, ty, 0, 1, &g.y())) continue;
-      const Eigen::Vector2d offset(tx - kPatchRadius, ty - kPatchRadius);
-      G += g * g.transpose();
-      for (int k = 0; k < 2; ++k) b[k] += g * g.dot(U[k] * offset);
-    }
-  }
-  if (!(G.determinant() > 1e-12 * G.squaredNorm())) return Eigen::Matrix2d::Zero();
-  const Eigen::Matrix2d G_inv = G.inverse();
-  const Eigen::Vector2d m0 = G_inv * b[0];
-  const Eigen::Vector2d m1 = G_inv * b[1];
-  return tilt_variance * (m0 * m0.transpose() + m1 * m1.transpose());
+  TemplateGradientMoments moments;
+  template_gradient_moments(tmpl, &moments);
+  return warp_shift_covariance(moments, A_ref_per_target, dA, tilt_variance);
 }
 
 }  // namespace vantage
-

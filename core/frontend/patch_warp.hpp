@@ -26,8 +26,18 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A_ref_per_target,
                          NccTemplate* out);
 
+// plane_affine and its tilt derivatives from the two views' projection Jacobians at X (as
+// project_with_jacobian gives them; the tracker has the target's from its prediction already):
+// A = J_ref J_target^-1 with J = H E for a basis E = [e1 e2] of the plane (A does not depend on which).
+// Tilting the normal by t toward e_k turns the basis by -t n e_k^T, so, exactly to first order,
+// dA_k = -(H_ref n - A H_target n) (row k of J_target^-1): rank one. dA may be null. Errors as
+// plane_affine except kBehindCamera (the caller's projections decide that).
+Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, const Eigen::Matrix<double, 2, 3>& H_target,
+                                   const Eigen::Vector3f& normal_world, Eigen::Matrix2d* A_ref_per_target,
+                                   std::array<Eigen::Matrix2d, 2>* dA);
+
 // The normal's uncertainty in the warp. dA_k = dA / dt_k for a tilt t_k (rad) of the normal about two
-// orthogonal axes of its plane (finite differences of plane_affine). Errors as plane_affine.
+// orthogonal axes of its plane (analytic, see plane_affine_from_jacobians). Errors as plane_affine.
 Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
                                      const Viewpoint& reference, const Viewpoint& target,
                                      const PinholeIntrinsics& intrinsics, const Eigen::Matrix2d& A_ref_per_target,
@@ -38,6 +48,21 @@ Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen
 // displaced by u(x) = A^-1 dA x at offset x, and the least-squares shift (J^T J)^-1 sum_x g g^T u(x)
 // (g the template gradient) is the match error, linear in t. Zero when the template has no gradient.
 Eigen::Matrix2d warp_shift_covariance(const NccTemplate& tmpl, const Eigen::Matrix2d& A_ref_per_target,
+                                      const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance);
+
+// What warp_shift_covariance needs of a template, one pass over its pixels: with g the template's
+// gradient (central differences, one-sided at the mask's edge, pixels without either neighbour on an
+// axis left out) and x = (x, y) the offset from the patch centre, G = sum g g^T, Mx = sum g g^T x,
+// My = sum g g^T y. Then sum g g^T U x = Mx U.col(0) + My U.col(1) for any 2x2 U.
+struct TemplateGradientMoments {
+  Eigen::Matrix2d G = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d Mx = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d My = Eigen::Matrix2d::Zero();
+};
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out);
+
+// warp_shift_covariance from the template's moments: a handful of 2x2 products per call.
+Eigen::Matrix2d warp_shift_covariance(const TemplateGradientMoments& moments, const Eigen::Matrix2d& A_ref_per_target,
                                       const std::array<Eigen::Matrix2d, 2>& dA, double tilt_variance);
 
 }  // namespace vantage
