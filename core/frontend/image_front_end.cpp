@@ -1,10 +1,13 @@
 #include "core/frontend/image_front_end.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "core/frontend/iterated_update.hpp"
+#include "core/frontend/match_covariance.hpp"
 #include "core/frontend/patch_warp.hpp"
+#include "core/frontend/photometric_normal.hpp"
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
 #include "core/geometry/projection.hpp"
@@ -36,6 +39,19 @@ std::int32_t floor_to_int(double value) {
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
+// The reference patch seen through the plane-induced map A (warped when A differs from identity by more
+// than min_deviation), and B: where a shift of the patch's feature shows in this image.
+void reference_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
+                        double min_deviation, NccTemplate* tmpl, Eigen::Matrix2d* B) {
+  if ((A - Eigen::Matrix2d::Identity()).norm() > min_deviation) {
+    warp_patch_template(patch, A, tmpl);
+    *B = A.inverse();
+  } else {
+    make_template(patch, tmpl);
+    B->setIdentity();
+  }
+}
+
 }  // namespace
 
 Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
@@ -49,7 +65,7 @@ Status FrontEndConfig::validate() const {
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
-                           facing_normal_tilt_variance};
+                           facing_normal_tilt_variance, photometric_normal_min_tilt_variance};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -74,7 +90,9 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_px)) return Status::kInvalidArgument;
-  if (!(facing_normal_tilt_variance >= 0.0)) return Status::kInvalidArgument;
+  if (!(facing_normal_tilt_variance >= 0.0) || !(photometric_normal_min_tilt_variance >= 0.0)) {
+    return Status::kInvalidArgument;
+  }
   if (!finite_positive(merge_max_sigma) || !finite_positive(merge_max_normal_angle_deg) ||
       !finite_positive(merge_plane_sigmas) || !finite_positive(merge_max_radius_px)) {
     return Status::kInvalidArgument;
@@ -305,19 +323,12 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (!ok(project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating)) ||
           !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
-        p.flags |= primitive_flags::kLostTrack;
-        count_rejection(i, centre_cell, pool, report);
+        reject_observation(i, centre_cell, pool, report);
         continue;
       }
     }
-    // B: where a shift of the reference patch's feature shows in this image (through the warp, if any).
-    Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
-    if ((A - Eigen::Matrix2d::Identity()).norm() > config_.warp_min_deviation) {
-      warp_patch_template(p.patch, A, &tmpl);
-      B = A.inverse();
-    } else {
-      make_template(p.patch, &tmpl);
-    }
+    Eigen::Matrix2d B;
+    reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
     if (config_.model_normal_uncertainty && have_creating) {
@@ -345,11 +356,18 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
-      p.flags |= primitive_flags::kLostTrack;
-      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
-      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report);
       continue;
     }
+    // A poorly known normal that matters here (its warp covariance outweighs the match's own): estimate it
+    // from this view's appearance, then match with its warp.
+    if (config_.photometric_normal && have_creating &&
+        normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance &&
+        warp_covariance.trace() > measurement_R(fit_covariance).trace()) {
+      (void)refine_normal_photometric(i, image, creating, view, pool, &tmpl, &B, &warp_covariance, &observed,
+                                      &fit_covariance);
+    }
+    correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
     ++report.matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
@@ -374,8 +392,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
-      if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
-      if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report);
     }
   }
 }
@@ -394,6 +411,75 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
   const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
   return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
                                   p.radius);
+}
+
+bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
+                                              const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl_out,
+                                              Eigen::Matrix2d* B,
+                                              Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
+                                              Eigen::Matrix2d* fit_covariance) {
+  if (config_.subpixel_iterations < 1 || !config_.adaptive_R) return false;
+  Primitive& p = pool[i];
+  PhotometricNormalQuery query;
+  query.X_world = p.X_world;
+  query.normal_world = p.normal_world;
+  // Every estimate uses the same reference patch, so their errors are not independent: the prior is the
+  // facing prior's width (the current normal only linearizes), and the estimate replaces the normal when
+  // it knows it better, as a plane fit does; it is not fused with the earlier ones.
+  const double current_variance = normal_tilt_variance(i);
+  query.prior_tilt_variance = std::max(config_.facing_normal_tilt_variance, current_variance);
+  query.reference = creating;
+  query.target = view;
+  query.uv_target_px = *observed;
+  query.min_facing_cos = config_.min_facing_cos;
+  PhotometricNormalEstimate estimate;
+  if (!ok(estimate_photometric_normal(image, p.patch, query, intrinsics_, &estimate)) ||
+      !(estimate.tilt_variance < current_variance)) {
+    return false;
+  }
+  // The match again, with the template warped by the estimated plane.
+  Eigen::Matrix2d A;
+  if (!ok(plane_affine(p.X_world, estimate.normal_world, creating, view, intrinsics_, &A))) return false;
+  NccTemplate tmpl;
+  Eigen::Matrix2d B_new;
+  reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B_new);
+  if (tmpl.valid_count < kPatchPixels / 2) return false;
+  Eigen::Vector2d uv = *observed;
+  Eigen::Matrix2d covariance;
+  if (!refine_subpixel(image, tmpl, static_cast<std::int32_t>(std::lround(observed->x())),
+                       static_cast<std::int32_t>(std::lround(observed->y())), config_.subpixel_iterations, &uv,
+                       &covariance)) {
+    return false;
+  }
+  Eigen::Matrix2d warp = Eigen::Matrix2d::Zero();
+  std::array<Eigen::Matrix2d, 2> dA;
+  if (config_.model_normal_uncertainty &&
+      ok(plane_affine_tilt_derivatives(p.X_world, estimate.normal_world, creating, view, intrinsics_, A, &dA))) {
+    warp = warp_shift_covariance(tmpl, A, dA, estimate.tilt_variance);
+  }
+  p.normal_world = estimate.normal_world;
+  set_normal_tilt_variance(i, estimate.tilt_variance);
+  *tmpl_out = tmpl;
+  *B = B_new;
+  *warp_covariance = warp;
+  *observed = uv;
+  *fit_covariance = covariance;
+  return true;
+}
+
+void ImageFrontEnd::correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl,
+                                             const Eigen::Vector2d& uv_px, Eigen::Matrix2d* fit_covariance) const {
+  if (!config_.correlated_fit_covariance || !config_.adaptive_R || !fit_covariance->allFinite()) return;
+  Eigen::Matrix2d correlated;
+  if (correlated_match_covariance(image, tmpl, uv_px, &correlated)) *fit_covariance = correlated;
+}
+
+void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                       UpdateReport& report) {
+  Primitive& p = pool[i];
+  p.flags |= primitive_flags::kLostTrack;
+  if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+  if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
 }
 
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {
@@ -601,6 +687,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
         continue;
       }
       ++stats_.seeds_matched;
+      correlate_fit_covariance(other, tmpl, matched_px, &fit_covariance);
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
       observation.R_b_px2 = measurement_R(fit_covariance);

@@ -67,6 +67,9 @@ struct FrontEndConfig {
   // Iterations of the iterated EKF update (core/frontend/iterated_update.hpp); 1 is the plain EKF.
   int ekf_iterations = 5;
   double match_sigma_floor_px = 0.05;
+  // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
+  // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R.
+  bool correlated_fit_covariance = true;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
   // The normal's uncertainty in R (see README, "Normal uncertainty"): a primitive's normal has a tilt
@@ -76,6 +79,13 @@ struct FrontEndConfig {
   // (surfaces show in proportion to their projected area) have variance 1/4 each.
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
+  // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
+  // variance exceeds photometric_normal_min_tilt_variance, and whose warp covariance (the normal's
+  // uncertainty in this match) outweighs the match's own R, gets its normal estimated from the warp
+  // between its creating view and this one, and is matched again with the template warped by it. Needs
+  // adaptive_R and subpixel_iterations >= 1.
+  bool photometric_normal = true;
+  double photometric_normal_min_tilt_variance = 0.01;
   // The reference patch's own pixel noise shifts the feature every match of a primitive looks for by the
   // same amount: an error common to all its observations, carried in the consider form of the update
   // (core/frontend/iterated_update.hpp) instead of averaging away. Its covariance is half the fit
@@ -168,6 +178,9 @@ class ImageFrontEnd final : public MeasurementSource {
   std::uint32_t next_view_index() const { return next_view_index_; }
   // The pose of an earlier image, if still in the table. kNotFound otherwise.
   Status view_pose(std::uint32_t view_index, Viewpoint* pose) const;
+  // The tilt variance (rad^2 per axis) of primitive i's normal: the facing prior, a plane fit's or a
+  // photometric estimate's (README, "Normal uncertainty").
+  double normal_tilt_variance(PrimitiveIndex i) const;
 
  private:
   // Checks one frame and its pose; counts the rejection.
@@ -180,12 +193,26 @@ class ImageFrontEnd final : public MeasurementSource {
   // with occlusion, not behind the depth buffer. Its projection and Jacobian go to *predicted and *H.
   bool predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion, Eigen::Vector2d* predicted,
                          Eigen::Matrix<double, 2, 3>* H) const;
+  // Estimates matched primitive i's normal photometrically (FrontEndConfig::photometric_normal) and
+  // matches it again near *observed with the template warped by it; on success adopts the normal and its
+  // tilt variance and replaces the template, B, the warp covariance, the match and its fit covariance. False: unchanged.
+  bool refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
+                                 const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl, Eigen::Matrix2d* B,
+                                 Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
+                                 Eigen::Matrix2d* fit_covariance);
+  // Replaces a match's fit covariance by the one with the residuals' spatial correlation
+  // (FrontEndConfig::correlated_fit_covariance) when that can be computed.
+  void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
+                                Eigen::Matrix2d* fit_covariance) const;
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
   // confirm_spawns); centre_cell (kNoCell: none) forgets it.
   static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);
   void drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool);
   // After erasing i: its centre cell (kNoCell: none) no longer names it.
   void forget_cell(PrimitiveIndex i, std::size_t centre_cell);
+  // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
+  // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
+  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   // Counts one failed or gated observation of primitive i; erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
@@ -199,7 +226,6 @@ class ImageFrontEnd final : public MeasurementSource {
   // is below the current one. The camera orients the normal.
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,
                   const Eigen::Vector3d& camera_world, PrimitivePoolView& pool);
-  double normal_tilt_variance(PrimitiveIndex i) const;
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,

@@ -448,3 +448,50 @@ TEST_CASE("adaptive scale: neighbours off each other's plane, or not yet well es
     CHECK(report.merged == 0u);
   }
 }
+
+TEST_CASE("the photometric normal turns facing-prior normals toward the plane's and shrinks their tilt variance") {
+  // A plane seen from straight on, then 17 degrees off: normals facing the creating camera are off by the
+  // rays' angles (up to ~20 degrees at the image corners). The same primitives (initialization is
+  // deterministic) with and without the photometric normal; those still on the facing prior without it.
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const auto image = scene.render(third);
+  std::vector<double> angle[2];
+  std::vector<double> variance[2];
+  std::vector<bool> matched[2];
+  for (int photometric = 0; photometric < 2; ++photometric) {
+    FrontEndConfig config = plane_config();
+    config.photometric_normal = photometric != 0;
+    config.merge_enabled = false;
+    initialize_on_plane(scene, first, second, config);
+    UpdateReport report;
+    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      const bool updated = g_pool.is_alive(i) && g_pool[i].observation_count > 0;
+      matched[photometric].push_back(updated);
+      angle[photometric].push_back(updated ? std::acos(std::fmin(1.0, static_cast<double>(g_pool[i].normal_world.x()))) : 0.0);
+      variance[photometric].push_back(updated ? g_front_end.normal_tilt_variance(i) : 0.0);
+    }
+  }
+  double sum_angle[2] = {0.0, 0.0};
+  double sum_variance[2] = {0.0, 0.0};
+  int count = 0;
+  for (std::size_t i = 0; i < angle[0].size() && i < angle[1].size(); ++i) {
+    if (!matched[0][i] || !matched[1][i] || variance[0][i] < plane_config().facing_normal_tilt_variance) continue;
+    for (int m = 0; m < 2; ++m) {
+      sum_angle[m] += angle[m][i];
+      sum_variance[m] += variance[m][i];
+    }
+    ++count;
+  }
+  REQUIRE(count > 20);
+  INFO(count << " primitives on the facing prior: mean normal error " << sum_angle[0] / count * 57.3 << " -> "
+             << sum_angle[1] / count * 57.3 << " deg, mean tilt variance " << sum_variance[0] / count << " -> "
+             << sum_variance[1] / count);
+  // Measured: 44 primitives, 23.3 -> 13.8 degrees, tilt variance 0.25 -> 0.12 (only those whose warp
+  // covariance outweighs the match's R are estimated, see FrontEndConfig::photometric_normal).
+  CHECK(sum_angle[1] < 0.75 * sum_angle[0]);
+  CHECK(sum_variance[1] < 0.7 * sum_variance[0]);
+}

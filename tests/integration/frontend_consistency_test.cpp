@@ -14,6 +14,8 @@
 #include <catch2/catch.hpp>
 
 #include "core/frontend/image_front_end.hpp"
+#include "core/frontend/match_covariance.hpp"
+#include "core/frontend/patch_warp.hpp"
 #include "core/geometry/projection.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
@@ -57,7 +59,12 @@ struct Figures {
   double rms_point_error = 0.0;  // distance of X to its true point, scene units
   double match_rate = 0.0;       // matched / predicted over all updates
   double mean_sigma = 0.0;       // sqrt(trace Sigma / 3)
+  // Gross failures (NEES above kGrossNees, which a chi2(3) variable never reaches: a wrong epipolar match,
+  // a patch across a depth edge that matched the other surface) and the mean NEES of the others.
+  std::size_t gross = 0;
+  double mean_nees_without_gross = 0.0;
 };
+constexpr double kGrossNees = 1000.0;
 
 // Errors of a set of primitives against their true points, summarized the same way for every source.
 class Samples {
@@ -68,6 +75,7 @@ class Samples {
   void add(const Primitive& p, const Eigen::Vector3d& truth) {
     const Eigen::Vector3d e = p.X_world - truth;
     nees_.push_back(e.dot(p.Sigma_world.ldlt().solve(e)));
+    gross_.push_back(nees_.back() > kGrossNees);
     sum_sq_point_ += e.squaredNorm();
     const double d = surface_distance_(p.X_world);
     sum_sq_surface_ += d * d;
@@ -79,10 +87,18 @@ class Samples {
     f.primitives = nees_.size();
     if (nees_.empty()) return f;
     const double n = static_cast<double>(nees_.size());
-    for (double v : nees_) {
+    double sum_without_gross = 0.0;
+    for (std::size_t i = 0; i < nees_.size(); ++i) {
+      const double v = nees_[i];
       f.mean_nees += v / n;
       if (v > kChi2Dof3Q99) f.above_q99 += 1.0 / n;
+      if (gross_[i]) {
+        ++f.gross;
+      } else {
+        sum_without_gross += v;
+      }
     }
+    if (f.gross < nees_.size()) f.mean_nees_without_gross = sum_without_gross / static_cast<double>(nees_.size() - f.gross);
     std::vector<double> sorted = nees_;
     std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
     f.median_nees = sorted[sorted.size() / 2];
@@ -98,6 +114,7 @@ class Samples {
  private:
   std::function<double(const Eigen::Vector3d&)> surface_distance_;
   std::vector<double> nees_;
+  std::vector<bool> gross_;
   double sum_sq_surface_ = 0.0;
   double sum_sq_point_ = 0.0;
   double sum_sigma_ = 0.0;
@@ -106,9 +123,10 @@ class Samples {
 void print(const char* scene, const char* what, const Figures& f) {
   std::printf("%s, %s: N=%zu mean NEES %.3f (95%% band [%.3f, %.3f]), median %.3f (chi2(3): %.3f), above the "
               "99%% quantile %.3f (0.010), RMS surface error %.5f, RMS point error %.5f, mean sigma %.5f, match "
-              "rate %.3f\n",
+              "rate %.3f; %zu gross failures (NEES > %.0f), mean NEES without them %.3f\n",
               scene, what, f.primitives, f.mean_nees, f.band_low, f.band_high, f.median_nees, kChi2Dof3Median,
-              f.above_q99, f.rms_error, f.rms_point_error, f.mean_sigma, f.match_rate);
+              f.above_q99, f.rms_error, f.rms_point_error, f.mean_sigma, f.match_rate, f.gross, kGrossNees,
+              f.mean_nees_without_gross);
 }
 
 // A scene: its world, the camera's views (small-baseline pair first), where the seed ray of a pixel meets
@@ -120,6 +138,8 @@ struct Scene {
   std::vector<Viewpoint> views;
   std::function<bool(const Eigen::Vector2d& seed_px, const Viewpoint& view, Eigen::Vector3d* X)> true_point;
   std::function<double(const Eigen::Vector3d&)> surface_distance;
+  // The true surface normal at a seed's point (diagnostics only).
+  std::function<bool(const Eigen::Vector2d& seed_px, const Viewpoint& view, Eigen::Vector3d* n)> true_normal;
 };
 
 struct SceneRun {
@@ -216,6 +236,79 @@ Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations) {
   return samples.summarize(matched, predicted);
 }
 
+// Per match, apart from tracking: the seed patches of views[0] warped by the true plane into views[j] and
+// refined from the true projection, as the front end's subpixel fit does. Mean NEES / 2 of the match
+// error against the fit covariance taken as white (refine_subpixel) and with the residuals' spatial
+// correlation (correlated_match_covariance), each alone and with the floor match_sigma_floor_px^2 I
+// added, and the fraction above the chi2(2) 99% quantile. 1 and 0.01 when consistent.
+void print_match_consistency(const Scene& scene, const FrontEndConfig& config, std::size_t j) {
+  sim::RaycastCameraConfig camera_config;
+  camera_config.intrinsics = scene.config->intrinsics;
+  camera_config.shading = scene.config->shading;
+  sim::RaycastCamera camera(scene.world->scene(), camera_config, nullptr);
+  const PinholeIntrinsics& k = camera.intrinsics();
+  std::vector<std::uint8_t> a(static_cast<std::size_t>(k.width_px) * k.height_px);
+  std::vector<std::uint8_t> b(a.size());
+  MutableGrayImageView va{a.data(), k.width_px, k.height_px, k.width_px};
+  MutableGrayImageView vb{b.data(), k.width_px, k.height_px, k.width_px};
+  REQUIRE(ok(camera.render(scene.views[0], va, nullptr, 0)));
+  REQUIRE(ok(camera.render(scene.views[j], vb, nullptr, j)));
+  const double floor2 = config.match_sigma_floor_px * config.match_sigma_floor_px;
+  constexpr double kChi2Dof2Q99 = 9.210340371976184;
+  double sums[4] = {0.0, 0.0, 0.0, 0.0};  // white, white + floor, correlated, correlated + floor
+  double tails[4] = {0.0, 0.0, 0.0, 0.0};
+  int count = 0;
+  const int stride = config.seed_stride_px;
+  for (int y = stride / 2; y < k.height_px; y += stride) {
+    for (int x = stride / 2; x < k.width_px; x += stride) {
+      if (!patch_inside(va.as_const(), x, y, 1)) continue;
+      Eigen::Vector3d X;
+      Eigen::Vector3d n;
+      const Eigen::Vector2d seed(x, y);
+      if (!scene.true_point(seed, scene.views[0], &X) || !scene.true_normal(seed, scene.views[0], &n)) continue;
+      if (n.dot(scene.views[0].position_world - X) < 0.0) n = -n;
+      Eigen::Vector2d truth;
+      Eigen::Matrix2d A;
+      if (!ok(project(X, scene.views[j], k, &truth)) || !in_image(truth, k, kPatchRadius + 4.0) ||
+          !ok(plane_affine(X, n.cast<float>(), scene.views[0], scene.views[j], k, &A))) {
+        continue;
+      }
+      // Seen from views[j] too (not hidden behind other surface).
+      Eigen::Vector3d X_j;
+      if (!scene.true_point(truth, scene.views[j], &X_j) || (X_j - X).norm() > 0.05) continue;
+      std::array<std::uint8_t, kPatchPixels> patch;
+      extract_patch(va.as_const(), x, y, &patch);
+      NccTemplate tmpl;
+      make_template(patch, &tmpl);
+      if (tmpl.stddev_gray < config.min_texture_stddev_gray) continue;
+      if ((A - Eigen::Matrix2d::Identity()).norm() > config.warp_min_deviation) warp_patch_template(patch, A, &tmpl);
+      Eigen::Vector2d found = truth;
+      Eigen::Matrix2d white;
+      Eigen::Matrix2d correlated;
+      if (!refine_subpixel(vb.as_const(), tmpl, static_cast<std::int32_t>(std::lround(truth.x())),
+                           static_cast<std::int32_t>(std::lround(truth.y())), config.subpixel_iterations, &found,
+                           &white) ||
+          !correlated_match_covariance(vb.as_const(), tmpl, found, &correlated)) {
+        continue;
+      }
+      const Eigen::Vector2d e = found - truth;
+      const Eigen::Matrix2d covariances[4] = {white, white + floor2 * Eigen::Matrix2d::Identity(), correlated,
+                                              correlated + floor2 * Eigen::Matrix2d::Identity()};
+      for (int m = 0; m < 4; ++m) {
+        const double nees = e.dot(covariances[m].inverse() * e);
+        sums[m] += nees / 2.0;
+        tails[m] += nees > kChi2Dof2Q99 ? 1.0 : 0.0;
+      }
+      ++count;
+    }
+  }
+  REQUIRE(count > 100);
+  std::printf("%s, matches view 0 -> %zu (true plane warp): N=%d mean NEES/2 (above chi2(2) q99) white %.2f (%.3f), "
+              "white + floor %.2f (%.3f), correlated %.2f (%.3f), correlated + floor %.2f (%.3f)\n",
+              scene.name, j, count, sums[0] / count, tails[0] / count, sums[1] / count, tails[1] / count,
+              sums[2] / count, tails[2] / count, sums[3] / count, tails[3] / count);
+}
+
 SceneRun run_scene(const Scene& scene) {
   SceneRun out;
   const FrontEndConfig config;
@@ -227,6 +320,7 @@ SceneRun run_scene(const Scene& scene) {
   out.tracked = evaluate_front_end(scene, config, 3, matched, predicted);
   out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations);
   out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations);
+  print_match_consistency(scene, config, scene.views.size() - 1);
   print(scene.name, "front end, all primitives", out.all);
   print(scene.name, "front end, >= 3 updates", out.tracked);
   print(scene.name, "oracle (95% gate, EKF), all primitives", out.oracle);
@@ -272,6 +366,10 @@ const SceneRun& plane_run() {
       return t > 0.0;
     };
     scene.surface_distance = [](const Eigen::Vector3d& X) { return std::abs(X.x()); };
+    scene.true_normal = [](const Eigen::Vector2d&, const Viewpoint&, Eigen::Vector3d* n) {
+      *n = Eigen::Vector3d::UnitX();
+      return true;
+    };
     return std::make_unique<SceneRun>(run_scene(scene));
   }();
   return *result;
@@ -298,6 +396,14 @@ const SceneRun& bunny_run() {
       *X = view.position_world + t * ray;
       return true;
     };
+    scene.true_normal = [k, &embree](const Eigen::Vector2d& seed, const Viewpoint& view, Eigen::Vector3d* n) {
+      std::uint32_t tri = 0;
+      if (!std::isfinite(embree.first_hit(view.position_world, back_project_ray_world(seed, view, k), &tri))) return false;
+      const auto& t = embree.mesh().triangles[tri];
+      const auto& v = embree.mesh().vertices;
+      *n = (v[t[1]] - v[t[0]]).cross(v[t[2]] - v[t[0]]).cast<double>().normalized();
+      return true;
+    };
     scene.surface_distance = [&embree](const Eigen::Vector3d& X) {
       const sim::ClosestPoint c = embree.closest_point(X, 100.0);
       return c.found ? c.distance : 100.0;
@@ -320,7 +426,7 @@ TEST_CASE("front end on a ray-cast textured plane: accurate, and most matches fo
 TEST_CASE("front end on the ray-cast bunny: accurate, and most matches found") {
   const SceneRun& run = bunny_run();
   REQUIRE(run.all.primitives > 500);
-  // Measured 0.71 (README): failures grow with the arc, from grazing and self-occluded patches the
+  // Measured 0.68 (README): failures grow with the arc, from grazing and self-occluded patches the
   // depth buffer still predicts visible and from warps with poor normals. A floor, not a goal.
   CHECK(run.all.match_rate > 0.5);
   CHECK(run.tracked.rms_error < 0.1);

@@ -1,0 +1,111 @@
+#pragma once
+// Least-squares covariances for residuals that are not white. A patch fit's residuals (image resampled
+// bilinearly minus a template) are correlated between neighbouring pixels: interpolation mixes
+// neighbouring pixels' noise and its model error is smooth. Taking them as white makes the fit's
+// covariance too small. Here the correlation C is separable with lag-one correlations rho_x, rho_y
+// between horizontal and vertical neighbours (rho_x rho_y diagonally, none farther), estimated from the
+// fit's own residual field, and the covariance is the sandwich sigma^2 H^-1 (J^T C J) H^-1, H = J^T J.
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/frontend/ncc.hpp"
+#include "core/image/gray_image.hpp"
+
+namespace vantage {
+
+// Bilinear interpolation of the image at (x, y); the caller keeps (x, y) inside [0, w - 1) x [0, h - 1).
+inline double sample_bilinear(const GrayImageView& image, double x, double y) {
+  const double fx0 = std::floor(x);
+  const double fy0 = std::floor(y);
+  const auto x0 = static_cast<std::int32_t>(fx0);
+  const auto y0 = static_cast<std::int32_t>(fy0);
+  const double fx = x - fx0;
+  const double fy = y - fy0;
+  const double top = (1.0 - fx) * image.at(x0, y0) + fx * image.at(x0 + 1, y0);
+  const double bottom = (1.0 - fx) * image.at(x0, y0 + 1) + fx * image.at(x0 + 1, y0 + 1);
+  return (1.0 - fy) * top + fy * bottom;
+}
+
+// Jacobian rows and residuals of a fit over the p x p patch (row-major); valid[i] false for pixels not
+// in the fit (their rows and residuals are ignored).
+template <int P>
+struct PatchResiduals {
+  std::array<Eigen::Matrix<double, P, 1>, kPatchPixels> J;
+  std::array<double, kPatchPixels> r{};
+  std::array<bool, kPatchPixels> valid{};
+};
+
+// Lag-one correlations of the residual field between horizontal (*rho_x) and vertical (*rho_y)
+// neighbours, clamped to [0, 0.45] (the truncated separable model stays positive definite below 0.5).
+template <int P>
+void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* rho_y) {
+  double squares = 0.0;
+  double products_x = 0.0;
+  double products_y = 0.0;
+  int count = 0;
+  int pairs_x = 0;
+  int pairs_y = 0;
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int x = 0; x < kPatchSize; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y * kPatchSize + x);
+      if (!fit.valid[i]) continue;
+      const double r = fit.r[i];
+      squares += r * r;
+      ++count;
+      if (x + 1 < kPatchSize && fit.valid[i + 1]) {
+        products_x += r * fit.r[i + 1];
+        ++pairs_x;
+      }
+      if (y + 1 < kPatchSize && fit.valid[i + kPatchSize]) {
+        products_y += r * fit.r[i + kPatchSize];
+        ++pairs_y;
+      }
+    }
+  }
+  auto clamp = [&](double products, int pairs) {
+    if (!(squares > 0.0) || pairs == 0) return 0.0;
+    const double rho = (products / pairs) / (squares / count);
+    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+  };
+  *rho_x = clamp(products_x, pairs_x);
+  *rho_y = clamp(products_y, pairs_y);
+}
+
+// J^T C J for the correlations above (J^T J when both are zero): J^T J + P + P^T with P the sum over
+// pixels of J_i times the correlation-weighted rows of its right, lower and lower diagonal neighbours.
+// J^T J itself goes to *gram_out when it is not null.
+template <int P>
+Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>& fit, double rho_x, double rho_y,
+                                                         Eigen::Matrix<double, P, P>* gram_out = nullptr) {
+  using Matrix = Eigen::Matrix<double, P, P>;
+  using Vector = Eigen::Matrix<double, P, 1>;
+  Matrix gram = Matrix::Zero();
+  Matrix cross = Matrix::Zero();
+  const double rho_xy = rho_x * rho_y;
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int x = 0; x < kPatchSize; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y * kPatchSize + x);
+      if (!fit.valid[i]) continue;
+      gram += fit.J[i] * fit.J[i].transpose();
+      Vector neighbours = Vector::Zero();
+      auto add = [&](std::size_t j, double rho) {
+        if (fit.valid[j]) neighbours += rho * fit.J[j];
+      };
+      const bool right = x + 1 < kPatchSize;
+      const bool down = y + 1 < kPatchSize;
+      if (right) add(i + 1, rho_x);
+      if (down) add(i + kPatchSize, rho_y);
+      if (right && down) add(i + kPatchSize + 1, rho_xy);
+      if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+      cross += fit.J[i] * neighbours.transpose();
+    }
+  }
+  if (gram_out != nullptr) *gram_out = gram;
+  return gram + cross + cross.transpose();
+}
+
+}  // namespace vantage

@@ -1,0 +1,184 @@
+#include "core/frontend/photometric_normal.hpp"
+
+#include <cmath>
+
+#include <Eigen/Cholesky>
+
+#include "core/frontend/correlated_residuals.hpp"
+#include "core/frontend/patch_warp.hpp"
+
+namespace vantage {
+
+namespace {
+
+constexpr int kParams = 6;  // u (2), tilt (2), gain, offset
+using Matrix6d = Eigen::Matrix<double, kParams, kParams>;
+using Vector6d = Eigen::Matrix<double, kParams, 1>;
+
+// The target-per-reference map of the plane with normal n at X (inverse of plane_affine's).
+Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& n,
+                  Eigen::Matrix2d* M) {
+  for (const Viewpoint* view : {&q.reference, &q.target}) {
+    const Eigen::Vector3d to_camera = (view->position_world - q.X_world).normalized();
+    if (!(n.dot(to_camera) > q.min_facing_cos)) return Status::kBehindCamera;
+  }
+  Eigen::Matrix2d A;
+  const Status status = plane_affine(q.X_world, n.cast<float>(), q.reference, q.target, k, &A);
+  if (!ok(status)) return status == Status::kInvalidArgument ? Status::kBehindCamera : status;
+  *M = A.inverse();
+  return M->allFinite() ? Status::kOk : Status::kBehindCamera;
+}
+
+// LDLT solves one column at a time (vector solves; a matrix right-hand side goes through Eigen's blocked
+// triangular solver, more code for a 6x6).
+Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
+  Matrix6d out;
+  for (int j = 0; j < kParams; ++j) {
+    const Vector6d column = rhs.col(j);
+    out.col(j) = ldlt.solve(column);
+  }
+  return out;
+}
+
+struct NormalEquations {
+  Matrix6d JtJ = Matrix6d::Zero();
+  Vector6d Jtr = Vector6d::Zero();
+  double sum_r2 = 0.0;
+  int count = 0;
+  PatchResiduals<kParams> rows;  // for the correlation model
+};
+
+// The normal equations of the photometric fit at parameters theta (u, t, gain, offset).
+Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
+                  const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& e1,
+                  const Eigen::Vector3d& e2, const Vector6d& theta, NormalEquations* out) {
+  const Eigen::Vector3d n0 = q.normal_world.cast<double>();
+  auto normal_at = [&](double t1, double t2) { return (n0 + t1 * e1 + t2 * e2).normalized(); };
+  Eigen::Matrix2d M;
+  Status status = target_map(q, k, normal_at(theta(2), theta(3)), &M);
+  if (!ok(status)) return status;
+  constexpr double kStep = 1e-3;  // rad; float normals in plane_affine resolve ~1e-7
+  Eigen::Matrix2d dM[2];
+  for (int j = 0; j < 2; ++j) {
+    Eigen::Matrix2d M_step;
+    status = target_map(q, k, normal_at(theta(2) + (j == 0 ? kStep : 0.0), theta(3) + (j == 1 ? kStep : 0.0)), &M_step);
+    if (!ok(status)) return status;
+    dM[j] = (M_step - M) / kStep;
+  }
+  const Eigen::Vector2d u = theta.head<2>();
+  out->JtJ.setZero();
+  out->Jtr.setZero();
+  out->sum_r2 = 0.0;
+  out->count = 0;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int tx = 0; tx < kPatchSize; ++tx) {
+      const Eigen::Vector2d y(tx - kPatchRadius, ty - kPatchRadius);
+      const Eigen::Vector2d p = u + M * y;
+      // One more pixel each side for the central differences.
+      if (!(p.x() >= 1.0 && p.y() >= 1.0 && p.x() < image.width_px - 2.0 && p.y() < image.height_px - 2.0)) {
+        return Status::kOutsideImage;
+      }
+      const double value = sample_bilinear(image, p.x(), p.y());
+      const Eigen::Vector2d g(0.5 * (sample_bilinear(image, p.x() + 1.0, p.y()) - sample_bilinear(image, p.x() - 1.0, p.y())),
+                              0.5 * (sample_bilinear(image, p.x(), p.y() + 1.0) - sample_bilinear(image, p.x(), p.y() - 1.0)));
+      const double T = patch[static_cast<std::size_t>(ty * kPatchSize + tx)];
+      const double r = value - theta(4) * T - theta(5);
+      Vector6d J;
+      J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
+      out->JtJ.noalias() += J * J.transpose();
+      out->Jtr += J * r;
+      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
+      out->rows.J[index] = J;
+      out->rows.r[index] = r;
+      out->rows.valid[index] = true;
+      out->sum_r2 += r * r;
+      ++out->count;
+    }
+  }
+  return Status::kOk;
+}
+
+}  // namespace
+
+Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
+                                   const PhotometricNormalQuery& query, const PinholeIntrinsics& intrinsics,
+                                   PhotometricNormalEstimate* estimate) {
+  const Eigen::Vector3d n0 = query.normal_world.cast<double>();
+  if (!n0.allFinite() || std::abs(n0.norm() - 1.0) > 1e-3 || !(query.prior_tilt_variance > 0.0) ||
+      !std::isfinite(query.prior_tilt_variance) || query.iterations < 1 || query.iterations > 20 ||
+      !query.uv_target_px.allFinite() || !query.X_world.allFinite()) {
+    return Status::kInvalidArgument;
+  }
+  if (!ok(image.validate())) return Status::kInvalidImage;
+  // The tilt axes: any orthonormal basis of the prior normal's plane.
+  const Eigen::Vector3d helper = std::abs(n0.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d e1 = n0.cross(helper).normalized();
+  const Eigen::Vector3d e2 = n0.cross(e1);
+  const double prior_information = 1.0 / query.prior_tilt_variance;
+  // Residual variance floor: the 8-bit quantization of both images.
+  constexpr double kMinResidualVariance = 2.0 / 12.0;
+  Vector6d theta;
+  theta << query.uv_target_px, 0.0, 0.0, 1.0, 0.0;
+  NormalEquations eq;
+  Matrix6d information;
+  for (int iteration = 0; iteration <= query.iterations; ++iteration) {
+    const Status status = accumulate(image, patch, query, intrinsics, e1, e2, theta, &eq);
+    if (!ok(status)) return status;
+    const double dof = eq.count - kParams;
+    const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+    // MAP: pixels weighted by the residual variance, the prior on the tilt.
+    information = eq.JtJ / sigma2;
+    information(2, 2) += prior_information;
+    information(3, 3) += prior_information;
+    if (iteration == query.iterations) break;  // the last pass only evaluates the solution
+    Vector6d gradient = eq.Jtr / sigma2;
+    gradient(2) += prior_information * theta(2);
+    gradient(3) += prior_information * theta(3);
+    const Eigen::LDLT<Matrix6d> ldlt(information);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
+    Vector6d step = -ldlt.solve(gradient);
+    if (!step.allFinite()) return Status::kNotSpd;
+    // Trust region on the tilt: a linearized warp is good to a few tenths of a radian.
+    const double tilt_step = step.segment<2>(2).norm();
+    constexpr double kMaxTiltStep = 0.3;
+    if (tilt_step > kMaxTiltStep) step *= kMaxTiltStep / tilt_step;
+    theta += step;
+    // Converged: the system just solved is the solution's to well within its own uncertainty.
+    if (step.head<2>().norm() < 1e-3 && step.segment<2>(2).norm() < 1e-4) break;
+    if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
+  }
+  // The residuals of a resampled patch are not white (bilinear interpolation mixes neighbouring pixels'
+  // noise; the interpolation's model error is smooth): the pixels' information is that of a correlated
+  // field, H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one
+  // correlations. White residuals give M = H.
+  const double dof = eq.count - kParams;
+  const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+  double rho_x = 0.0;
+  double rho_y = 0.0;
+  lag_one_correlations(eq.rows, &rho_x, &rho_y);
+  const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
+  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
+  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
+  information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
+  information = 0.5 * (information + information.transpose()).eval();
+  information(2, 2) += prior_information;
+  information(3, 3) += prior_information;
+  const Eigen::LDLT<Matrix6d> ldlt(information);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
+  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
+  const Eigen::Matrix2d tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
+  // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
+  const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));
+  const double half_difference = 0.5 * (tilt_covariance(0, 0) - tilt_covariance(1, 1));
+  const double radius = std::sqrt(half_difference * half_difference + tilt_covariance(0, 1) * tilt_covariance(0, 1));
+  const double largest = half_trace + radius;
+  if (!covariance.allFinite() || !(half_trace - radius > 0.0)) return Status::kNotSpd;
+  estimate->normal_world = (n0 + theta(2) * e1 + theta(3) * e2).normalized().cast<float>();
+  estimate->tilt_covariance = tilt_covariance;
+  estimate->tilt_variance = largest;
+  estimate->uv_target_px = theta.head<2>();
+  estimate->residual_variance_gray2 = eq.count > kParams ? eq.sum_r2 / (eq.count - kParams) : 0.0;
+  return Status::kOk;
+}
+
+}  // namespace vantage

@@ -1,0 +1,54 @@
+#pragma once
+// A primitive's normal from its appearance: the plane through X with normal n maps the reference patch
+// (stored in the creating view) into a new view by the plane-induced warp (patch_warp.hpp); a wrong
+// normal distorts the warped patch, and the distortion grows with the change of view and toward grazing
+// incidence. Gauss-Newton over the 7x7 reference pixels y on
+//   I(u + M(t) y) = alpha * T(y) + beta,   M(t) = A(n(t))^-1,   n(t) = normalize(n0 + t1 e1 + t2 e2)
+// (u the patch centre in the new image, t the tilt of the normal about two axes of its plane, gain and
+// offset as NCC), with the normal's prior N(n0, prior_tilt_variance I) as a Gaussian prior on t. The
+// residual variance comes from the fit. The reference pixels are not resampled (only the new image is,
+// bilinearly), so the template's values are exactly the stored patch.
+#include <array>
+#include <cstdint>
+
+#include <Eigen/Core>
+
+#include "core/common/status.hpp"
+#include "core/frontend/ncc.hpp"
+#include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
+#include "core/image/gray_image.hpp"
+
+namespace vantage {
+
+struct PhotometricNormalQuery {
+  Eigen::Vector3d X_world = Eigen::Vector3d::Zero();
+  Eigen::Vector3f normal_world = Eigen::Vector3f::UnitZ();  // the prior mean n0, unit length
+  double prior_tilt_variance = 0.25;                        // rad^2 per axis, > 0
+  Viewpoint reference;                                       // the view the patch was taken in
+  Viewpoint target;                                          // the new view
+  Eigen::Vector2d uv_target_px = Eigen::Vector2d::Zero();    // start of u (a match of the patch)
+  int iterations = 5;
+  // A primitive faces a camera when cos(normal, direction to the camera) exceeds this; the estimate
+  // must face both views.
+  double min_facing_cos = 0.05;
+};
+
+struct PhotometricNormalEstimate {
+  Eigen::Vector3f normal_world = Eigen::Vector3f::UnitZ();
+  // Posterior covariance of the tilt (rad^2) about the axes of tilt_axes, and its largest eigenvalue.
+  Eigen::Matrix2d tilt_covariance = Eigen::Matrix2d::Zero();
+  double tilt_variance = 0.0;
+  Eigen::Vector2d uv_target_px = Eigen::Vector2d::Zero();  // u at the solution
+  double residual_variance_gray2 = 0.0;
+};
+
+// kInvalidArgument for a non-unit normal, a non-positive prior variance or iterations outside [1, 20];
+// kBehindCamera when X is behind either view or the normal turns away from one (or edge-on);
+// kOutsideImage when the patch leaves the image or u moves more than 1.5 px from its start; kNotSpd when
+// the system is singular (no texture). The estimate is untouched on error.
+Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
+                                   const PhotometricNormalQuery& query, const PinholeIntrinsics& intrinsics,
+                                   PhotometricNormalEstimate* estimate);
+
+}  // namespace vantage
