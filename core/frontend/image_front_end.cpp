@@ -214,12 +214,7 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   const std::uint32_t first_index = next_view_index_;
   view_poses_[0] = first_view;
   next_view_index_ = 1;
-  // Primitives someone else put in the pool have a normal nobody fitted: the facing-camera prior.
-  normal_tilt_variance_.fill(static_cast<float>(config_.facing_normal_tilt_variance));
-  for (TemplateNoise& noise : template_noise_) {
-    noise.cross_covariance.setZero();
-    noise.covariance_px2.setZero();
-  }
+  forget_primitive_tables();
   reset_cells();
   spawn(first, first_view, first_index, second, second_view, pool, out);
   remember(second, second_view);
@@ -227,6 +222,17 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   ++stats_.frames_accepted;
   if (out.spawned > 0) pool.mark_modified();
   return Status::kOk;
+}
+
+void ImageFrontEnd::forget_primitive_tables() {
+  // Primitives someone else put in the pool have a normal nobody fitted (the facing-camera prior), no
+  // recorded patch noise and no rejection history.
+  normal_tilt_variance_.fill(static_cast<float>(config_.facing_normal_tilt_variance));
+  for (TemplateNoise& noise : template_noise_) {
+    noise.cross_covariance.setZero();
+    noise.covariance_px2.setZero();
+  }
+  rejected_in_a_row_.fill(0);
 }
 
 Status ImageFrontEnd::update(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,

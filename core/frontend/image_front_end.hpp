@@ -68,8 +68,10 @@ struct FrontEndConfig {
   int ekf_iterations = 5;
   double match_sigma_floor_px = 0.05;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
-  // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R.
-  bool correlated_fit_covariance = true;
+  // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
+  // test it made the plane more conservative (NEES 2.69 -> 2.26) and let a wrong match on the bunny pass
+  // the gate, and it costs about 12,600 instructions a match (README, "Consistency").
+  bool correlated_fit_covariance = false;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
   double max_initial_sigma = 10.0;
   // The normal's uncertainty in R (see README, "Normal uncertainty"): a primitive's normal has a tilt
@@ -174,6 +176,11 @@ class ImageFrontEnd final : public MeasurementSource {
   const FrontEndStats& stats() const { return stats_; }
   bool configured() const { return configured_; }
   bool initialized() const { return initialized_; }
+  // The per-slot tables (normal tilt variance, patch noise, rejection count) describe the primitives this
+  // front end created. After primitives were put into the pool by someone else (a model loaded from
+  // storage, a test), call this so every slot is treated as such a primitive: facing-camera normal
+  // prior, no patch noise, no rejections. initialize() does it too.
+  void forget_primitive_tables();
   // Index the next accepted image gets (Primitive::creating_view counts images from 0).
   std::uint32_t next_view_index() const { return next_view_index_; }
   // The pose of an earlier image, if still in the table. kNotFound otherwise.

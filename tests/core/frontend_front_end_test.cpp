@@ -352,6 +352,26 @@ TEST_CASE("configure refuses cameras beyond the buffers and out-of-range setting
   CHECK_FALSE(g_front_end.configured());
 }
 
+TEST_CASE("forget_primitive_tables gives every slot the facing prior of a primitive the front end did not create") {
+  Scene scene;
+  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  initialize_on_plane(scene, first, second);
+  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const auto c = scene.render(third);
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report)));
+  const double prior = g_front_end.config().facing_normal_tilt_variance;
+  auto slots_off_prior = [&] {
+    int count = 0;
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) count += g_front_end.normal_tilt_variance(i) != prior ? 1 : 0;
+    return count;
+  };
+  REQUIRE(slots_off_prior() > 0);  // fitted or photometric normals
+  REQUIRE_NO_ALLOCATION(g_front_end.forget_primitive_tables());
+  CHECK(slots_off_prior() == 0);
+}
+
 TEST_CASE("initialize and update do not allocate") {
   Scene scene;
   g_pool.clear();
