@@ -40,6 +40,31 @@ Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
   return out;
 }
 
+// sample_bilinear at (x, y) and the central differences of its samples one pixel away on each axis,
+// from one 4x4 neighbourhood: the five samples share their fractional parts, so the eight row blends
+// serve them all (12 pixel reads instead of 20). The same arithmetic as five sample_bilinear calls (to
+// the last bit while x +- 1 and y +- 1 keep x's and y's binary exponent). The caller keeps x, y in
+// [1, size - 2).
+void sample_with_gradient(const GrayImageView& image, double x, double y, double* value, Eigen::Vector2d* g) {
+  const double fx0 = std::floor(x);
+  const double fy0 = std::floor(y);
+  const auto x0 = static_cast<std::int32_t>(fx0);
+  const auto y0 = static_cast<std::int32_t>(fy0);
+  const double fx = x - fx0;
+  const double fy = y - fy0;
+  // Row r's blend of columns c and c + 1.
+  auto blend = [&](std::int32_t c, std::int32_t r) { return (1.0 - fx) * image.at(c, r) + fx * image.at(c + 1, r); };
+  auto vertical = [fy](double top, double bottom) { return (1.0 - fy) * top + fy * bottom; };
+  const double centre_0 = blend(x0, y0);
+  const double centre_1 = blend(x0, y0 + 1);
+  *value = vertical(centre_0, centre_1);
+  const double right = vertical(blend(x0 + 1, y0), blend(x0 + 1, y0 + 1));
+  const double left = vertical(blend(x0 - 1, y0), blend(x0 - 1, y0 + 1));
+  const double down = vertical(centre_1, blend(x0, y0 + 2));
+  const double up = vertical(blend(x0, y0 - 1), centre_0);
+  *g = Eigen::Vector2d(0.5 * (right - left), 0.5 * (down - up));
+}
+
 struct NormalEquations {
   Matrix6d JtJ = Matrix6d::Zero();
   Vector6d Jtr = Vector6d::Zero();
@@ -78,14 +103,17 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       if (!(p.x() >= 1.0 && p.y() >= 1.0 && p.x() < image.width_px - 2.0 && p.y() < image.height_px - 2.0)) {
         return Status::kOutsideImage;
       }
-      const double value = sample_bilinear(image, p.x(), p.y());
-      const Eigen::Vector2d g(0.5 * (sample_bilinear(image, p.x() + 1.0, p.y()) - sample_bilinear(image, p.x() - 1.0, p.y())),
-                              0.5 * (sample_bilinear(image, p.x(), p.y() + 1.0) - sample_bilinear(image, p.x(), p.y() - 1.0)));
+      double value;
+      Eigen::Vector2d g;
+      sample_with_gradient(image, p.x(), p.y(), &value, &g);
       const double T = patch[static_cast<std::size_t>(ty * kPatchSize + tx)];
       const double r = value - theta(4) * T - theta(5);
       Vector6d J;
       J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
-      out->JtJ.noalias() += J * J.transpose();
+      // The upper triangle only (mirrored below): each entry the same products in the same order.
+      for (int col = 0; col < kParams; ++col) {
+        for (int row = 0; row <= col; ++row) out->JtJ(row, col) += J(row) * J(col);
+      }
       out->Jtr += J * r;
       const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
       out->rows.J[index] = J;
@@ -94,6 +122,9 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
       out->sum_r2 += r * r;
       ++out->count;
     }
+  }
+  for (int col = 0; col < kParams; ++col) {
+    for (int row = col + 1; row < kParams; ++row) out->JtJ(row, col) = out->JtJ(col, row);
   }
   return Status::kOk;
 }
