@@ -6,6 +6,7 @@
 
 #include "core/frontend/correlated_residuals.hpp"
 #include "core/frontend/patch_warp.hpp"
+#include "core/geometry/projection.hpp"
 
 namespace vantage {
 
@@ -15,16 +16,38 @@ constexpr int kParams = 6;  // u (2), tilt (2), gain, offset
 using Matrix6d = Eigen::Matrix<double, kParams, kParams>;
 using Vector6d = Eigen::Matrix<double, kParams, 1>;
 
+// What the plane maps need of the two views, the same for every normal tried: the directions to the
+// cameras and the Jacobians of X's projections (plane_affine's, computed once per estimate).
+struct PlaneViews {
+  Eigen::Vector3d to_reference;
+  Eigen::Vector3d to_target;
+  Eigen::Matrix<double, 2, 3> H_reference;
+  Eigen::Matrix<double, 2, 3> H_target;
+};
+
+// False when X is behind either camera.
+bool plane_views(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, PlaneViews* out) {
+  out->to_reference = (q.reference.position_world - q.X_world).normalized();
+  out->to_target = (q.target.position_world - q.X_world).normalized();
+  Eigen::Vector2d unused;
+  return ok(project_with_jacobian(q.X_world, q.reference, k, &unused, &out->H_reference)) &&
+         ok(project_with_jacobian(q.X_world, q.target, k, &unused, &out->H_target));
+}
+
 // The target-per-reference map of the plane with normal n at X (inverse of plane_affine's).
-Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& n,
+Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, const Eigen::Vector3d& n,
                   Eigen::Matrix2d* M) {
-  for (const Viewpoint* view : {&q.reference, &q.target}) {
-    const Eigen::Vector3d to_camera = (view->position_world - q.X_world).normalized();
-    if (!(n.dot(to_camera) > q.min_facing_cos)) return Status::kBehindCamera;
+  if (!(n.dot(views.to_reference) > q.min_facing_cos) || !(n.dot(views.to_target) > q.min_facing_cos)) {
+    return Status::kBehindCamera;
   }
+  // plane_affine's checks and map with the Jacobians computed once.
+  const Eigen::Vector3f n_float = n.cast<float>();
+  const Eigen::Vector3d n_checked = n_float.cast<double>();
+  if (!n_checked.allFinite() || std::abs(n_checked.norm() - 1.0) > 1e-3) return Status::kBehindCamera;
   Eigen::Matrix2d A;
-  const Status status = plane_affine(q.X_world, n.cast<float>(), q.reference, q.target, k, &A);
-  if (!ok(status)) return status == Status::kInvalidArgument ? Status::kBehindCamera : status;
+  if (!ok(plane_affine_from_jacobians(views.H_reference, views.H_target, n_float, &A, nullptr))) {
+    return Status::kBehindCamera;
+  }
   *M = A.inverse();
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
@@ -75,18 +98,18 @@ struct NormalEquations {
 
 // The normal equations of the photometric fit at parameters theta (u, t, gain, offset).
 Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
-                  const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& e1,
+                  const PhotometricNormalQuery& q, const PlaneViews& views, const Eigen::Vector3d& e1,
                   const Eigen::Vector3d& e2, const Vector6d& theta, NormalEquations* out) {
   const Eigen::Vector3d n0 = q.normal_world.cast<double>();
   auto normal_at = [&](double t1, double t2) { return (n0 + t1 * e1 + t2 * e2).normalized(); };
   Eigen::Matrix2d M;
-  Status status = target_map(q, k, normal_at(theta(2), theta(3)), &M);
+  Status status = target_map(q, views, normal_at(theta(2), theta(3)), &M);
   if (!ok(status)) return status;
   constexpr double kStep = 1e-3;  // rad; float normals in plane_affine resolve ~1e-7
   Eigen::Matrix2d dM[2];
   for (int j = 0; j < 2; ++j) {
     Eigen::Matrix2d M_step;
-    status = target_map(q, k, normal_at(theta(2) + (j == 0 ? kStep : 0.0), theta(3) + (j == 1 ? kStep : 0.0)), &M_step);
+    status = target_map(q, views, normal_at(theta(2) + (j == 0 ? kStep : 0.0), theta(3) + (j == 1 ? kStep : 0.0)), &M_step);
     if (!ok(status)) return status;
     dM[j] = (M_step - M) / kStep;
   }
@@ -150,10 +173,12 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   constexpr double kMinResidualVariance = 2.0 / 12.0;
   Vector6d theta;
   theta << query.uv_target_px, 0.0, 0.0, 1.0, 0.0;
+  PlaneViews views;
+  if (!plane_views(query, intrinsics, &views)) return Status::kBehindCamera;
   NormalEquations eq;
   Matrix6d information;
   for (int iteration = 0; iteration <= query.iterations; ++iteration) {
-    const Status status = accumulate(image, patch, query, intrinsics, e1, e2, theta, &eq);
+    const Status status = accumulate(image, patch, query, views, e1, e2, theta, &eq);
     if (!ok(status)) return status;
     const double dof = eq.count - kParams;
     const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
