@@ -67,11 +67,34 @@ void finish_template(NccTemplate* out) {
 }  // namespace
 
 void make_template(const std::array<std::uint8_t, kPatchPixels>& patch, NccTemplate* out) {
-  for (int i = 0; i < kPatchPixels; ++i) {
-    out->values[i] = static_cast<float>(patch[i]);
-    out->mask[i] = 1.0f;
+  // Nothing masked: finish_template's arithmetic without the mask (its products with 1 are exact, the
+  // count of ones is exactly kPatchPixels), so the same values in fewer instructions (every tracked
+  // primitive makes a template per frame).
+  constexpr int kWhole = kPatchPixels / 4 * 4;
+  alignas(16) float gray[64];
+  bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, gray, 64);
+  Float4 sum4 = splat4(0.0f);
+  for (int i = 0; i < kWhole; i += 4) sum4 += load4(gray + i);
+  float sum = sum_lanes(sum4);
+  for (int i = kWhole; i < kPatchPixels; ++i) sum += gray[i];
+  const float mean = sum / static_cast<float>(kPatchPixels);
+  float* centred = out->values.data();
+  const Float4 mean4 = splat4(mean);
+  Float4 sum_sq4 = splat4(0.0f);
+  for (int i = 0; i < kWhole; i += 4) {
+    const Float4 c = load4(gray + i) - mean4;
+    store4(centred + i, c);
+    sum_sq4 += c * c;
   }
-  finish_template(out);
+  float sum_sq = sum_lanes(sum_sq4);
+  for (int i = kWhole; i < kPatchPixels; ++i) {
+    centred[i] = gray[i] - mean;
+    sum_sq += centred[i] * centred[i];
+  }
+  out->mask.fill(1.0f);
+  out->valid_count = kPatchPixels;
+  out->norm = std::sqrt(sum_sq);
+  out->stddev_gray = std::sqrt(sum_sq / static_cast<float>(kPatchPixels));
 }
 
 void make_template(const std::array<float, kPatchPixels>& gray, const std::array<float, kPatchPixels>& mask,

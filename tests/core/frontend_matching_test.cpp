@@ -69,6 +69,35 @@ TEST_CASE("NCC against a flat image patch or with a flat template is -1") {
   CHECK(ncc_at(textured_image, kPatchRadius, kPatchRadius, tmpl) == -1.0f);
 }
 
+TEST_CASE("the unmasked template equals the masked template maker's with nothing masked, bit for bit") {
+  std::uint32_t state = 7u;
+  for (int trial = 0; trial < 200; ++trial) {
+    std::array<std::uint8_t, kPatchPixels> patch{};
+    std::array<float, kPatchPixels> gray{};
+    std::array<float, kPatchPixels> ones{};
+    for (int i = 0; i < kPatchPixels; ++i) {
+      state = state * 1664525u + 1013904223u;
+      // Narrow and wide ranges, a constant patch among them.
+      const std::uint32_t range = trial % 3 == 0 ? 8u : (trial == 1 ? 1u : 256u);
+      patch[i] = static_cast<std::uint8_t>((state >> 8) % range + (range < 256u ? 100u : 0u));
+      gray[i] = patch[i];
+      ones[i] = 1.0f;
+    }
+    NccTemplate fast;
+    NccTemplate general;
+    make_template(patch, &fast);
+    make_template(gray, ones, &general);
+    CHECK(fast.values == general.values);
+    CHECK(fast.mask == general.mask);
+    CHECK(fast.norm == general.norm);
+    CHECK(fast.stddev_gray == general.stddev_gray);
+    CHECK(fast.valid_count == general.valid_count);
+  }
+  std::array<std::uint8_t, kPatchPixels> patch{};
+  NccTemplate tmpl;
+  REQUIRE_NO_ALLOCATION(make_template(patch, &tmpl));
+}
+
 TEST_CASE("the parabola fit recovers the vertex of a sampled parabola") {
   for (double vertex : {-0.4, -0.13, 0.0, 0.27, 0.45}) {
     auto f = [&](double x) { return 0.9 - 0.3 * (x - vertex) * (x - vertex); };
