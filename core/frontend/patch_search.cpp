@@ -102,15 +102,19 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     }
   }
   if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[(cy - y0) * w + cx - x0] = 1.0f;
+  // Each row's first and last candidate, scanned for from both ends (most of a small ellipse's pixels
+  // are candidates, so both scans stop early).
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
-    const float* row = inside + (y - y0) * w;
-    for (std::int32_t x = x0 + 1; x < x1; ++x) {
-      if (row[x - x0] == 0.0f) continue;
-      in_x0 = x < in_x0 ? x : in_x0;
-      in_x1 = x > in_x1 ? x : in_x1;
-      in_y0 = y < in_y0 ? y : in_y0;
-      in_y1 = y > in_y1 ? y : in_y1;
-    }
+    const float* row = inside + (y - y0) * w;  // row[x - x0]
+    std::int32_t first = 1;
+    while (first < w - 1 && row[first] == 0.0f) ++first;
+    if (first == w - 1) continue;
+    std::int32_t last = w - 2;
+    while (row[last] == 0.0f) --last;
+    in_x0 = x0 + first < in_x0 ? x0 + first : in_x0;
+    in_x1 = x0 + last > in_x1 ? x0 + last : in_x1;
+    in_y0 = y < in_y0 ? y : in_y0;
+    in_y1 = y;
   }
   *best_ncc = -2.0f;
   if (in_x0 > in_x1) return MatchOutcome::kBelowThreshold;
@@ -135,14 +139,14 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   kernels.ncc_box(kernel_image(image), kernel_template(tmpl), box, rest, ncc);
   auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - n_y0) * n_stride + x - n_x0]; };
   auto is_inside = [&](std::int32_t x, std::int32_t y) { return inside[(y - y0) * w + x - x0] != 0.0f; };
+  // The eight neighbours, those below and right first: the scans below run in raster order, so a
+  // candidate on the rising slope toward a peak usually fails on its first test.
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
-    const float centre = value(x, y);
-    for (std::int32_t dy = -1; dy <= 1; ++dy) {
-      for (std::int32_t dx = -1; dx <= 1; ++dx) {
-        if ((dx != 0 || dy != 0) && value(x + dx, y + dy) > centre) return false;
-      }
-    }
-    return true;
+    const float* centre = ncc + (y - n_y0) * n_stride + (x - n_x0);
+    const std::int32_t s = n_stride;
+    const float v = *centre;
+    return !(centre[s] > v || centre[1] > v || centre[s + 1] > v || centre[s - 1] > v || centre[-1] > v ||
+             centre[-s] > v || centre[-s + 1] > v || centre[-s - 1] > v);
   };
   // Best local maximum inside the gate ellipse.
   float best = -2.0f;
