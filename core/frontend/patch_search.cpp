@@ -18,6 +18,15 @@ Eigen::Vector2d refine(std::int32_t x, std::int32_t y, float centre, float left,
   return Eigen::Vector2d(x + parabola_peak_offset(left, centre, right), y + parabola_peak_offset(up, centre, down));
 }
 
+// std::lround (half away from zero) inline: truncation is exact for |value| < 2^30, and value minus its
+// truncation is exact too; the library call (through the PLT) for anything else.
+std::int32_t round_to_int(double value) {
+  if (!(std::abs(value) < 1073741824.0)) return static_cast<std::int32_t>(std::lround(value));
+  const std::int32_t truncated = static_cast<std::int32_t>(value);
+  const double fraction = value - truncated;
+  return truncated + (fraction >= 0.5 ? 1 : (fraction <= -0.5 ? -1 : 0));
+}
+
 // The kernel views of an image and a template.
 match_kernel::Image kernel_image(const GrayImageView& image) {
   return match_kernel::Image{image.pixels, image.width_px, image.height_px, image.stride_bytes};
@@ -61,8 +70,8 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   if (!query.predicted_px.allFinite() || query.half_width_px < 1 || query.half_height_px < 1) {
     return MatchOutcome::kNoRoom;
   }
-  const std::int32_t cx = static_cast<std::int32_t>(std::lround(query.predicted_px.x()));
-  const std::int32_t cy = static_cast<std::int32_t>(std::lround(query.predicted_px.y()));
+  const std::int32_t cx = round_to_int(query.predicted_px.x());
+  const std::int32_t cy = round_to_int(query.predicted_px.y());
   // The box holds the window plus a one-pixel ring so every candidate has its 4-neighbours' NCC.
   std::int32_t x0 = cx - query.half_width_px - 1;
   std::int32_t x1 = cx + query.half_width_px + 1;
