@@ -17,17 +17,26 @@
 
 namespace vantage {
 
-// Bilinear interpolation of the image at (x, y); the caller keeps (x, y) inside [0, w - 1) x [0, h - 1).
-inline double sample_bilinear(const GrayImageView& image, double x, double y) {
+// The pixel cell holding (x, y): its top-left pixel and the fractional position inside it.
+struct BilinearCell {
+  std::int32_t x0 = 0;
+  std::int32_t y0 = 0;
+  double fx = 0.0;
+  double fy = 0.0;
+};
+
+inline BilinearCell bilinear_cell(double x, double y) {
   const double fx0 = std::floor(x);
   const double fy0 = std::floor(y);
-  const auto x0 = static_cast<std::int32_t>(fx0);
-  const auto y0 = static_cast<std::int32_t>(fy0);
-  const double fx = x - fx0;
-  const double fy = y - fy0;
-  const double top = (1.0 - fx) * image.at(x0, y0) + fx * image.at(x0 + 1, y0);
-  const double bottom = (1.0 - fx) * image.at(x0, y0 + 1) + fx * image.at(x0 + 1, y0 + 1);
-  return (1.0 - fy) * top + fy * bottom;
+  return BilinearCell{static_cast<std::int32_t>(fx0), static_cast<std::int32_t>(fy0), x - fx0, y - fy0};
+}
+
+// Bilinear interpolation of the image at (x, y); the caller keeps (x, y) inside [0, w - 1) x [0, h - 1).
+inline double sample_bilinear(const GrayImageView& image, double x, double y) {
+  const BilinearCell c = bilinear_cell(x, y);
+  const double top = (1.0 - c.fx) * image.at(c.x0, c.y0) + c.fx * image.at(c.x0 + 1, c.y0);
+  const double bottom = (1.0 - c.fx) * image.at(c.x0, c.y0 + 1) + c.fx * image.at(c.x0 + 1, c.y0 + 1);
+  return (1.0 - c.fy) * top + c.fy * bottom;
 }
 
 // Jacobian rows and residuals of a fit over the p x p patch (row-major); valid[i] false for pixels not

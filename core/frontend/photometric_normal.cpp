@@ -69,12 +69,11 @@ Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
 // the last bit while x +- 1 and y +- 1 keep x's and y's binary exponent). The caller keeps x, y in
 // [1, size - 2).
 void sample_with_gradient(const GrayImageView& image, double x, double y, double* value, Eigen::Vector2d* g) {
-  const double fx0 = std::floor(x);
-  const double fy0 = std::floor(y);
-  const auto x0 = static_cast<std::int32_t>(fx0);
-  const auto y0 = static_cast<std::int32_t>(fy0);
-  const double fx = x - fx0;
-  const double fy = y - fy0;
+  const BilinearCell cell = bilinear_cell(x, y);
+  const std::int32_t x0 = cell.x0;
+  const std::int32_t y0 = cell.y0;
+  const double fx = cell.fx;
+  const double fy = cell.fy;
   // Row r's blend of columns c and c + 1.
   auto blend = [&](std::int32_t c, std::int32_t r) { return (1.0 - fx) * image.at(c, r) + fx * image.at(c + 1, r); };
   auto vertical = [fy](double top, double bottom) { return (1.0 - fy) * top + fy * bottom; };
