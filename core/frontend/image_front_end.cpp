@@ -388,8 +388,26 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
+    TrackedObservation seen;
+    if (observer_ != nullptr) {
+      seen.index = i;
+      seen.prior = p;
+      seen.predicted_px = predicted;
+      seen.observed_px = observed;
+      seen.R_px2 = ekf.R_px2;
+      seen.warp_covariance_px2 = warp_covariance;
+      seen.common_covariance_px2 = common.covariance_px2;
+      seen.common_cross_covariance = common.cross_covariance;
+      seen.B = B;
+      seen.view = view;
+      seen.creating_view = creating;
+    }
     const Status updated =
         iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
+    if (observer_ != nullptr) {
+      seen.outcome = updated;
+      observer_->on_observation(seen);
+    }
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
