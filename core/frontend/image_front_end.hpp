@@ -81,6 +81,12 @@ struct FrontEndConfig {
   // (surfaces show in proportion to their projected area) have variance 1/4 each.
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
+  // The same for a new primitive's two-view match (with model_normal_uncertainty): the seed patch is
+  // matched unwarped, i.e. as if the surface faced the reference camera, so the facing prior's tilt
+  // variance displaces that match too; it is added to the match's R before triangulating. Off: it makes a
+  // new primitive's first re-observation consistent whatever the spawn baseline, but the sim mission got
+  // worse with it (README, "Why the mission gates").
+  bool model_spawn_normal_uncertainty = false;
   // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
   // variance exceeds photometric_normal_min_tilt_variance, and whose warp covariance (the normal's
   // uncertainty in this match) outweighs the match's own R, gets its normal estimated from the warp

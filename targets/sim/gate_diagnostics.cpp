@@ -73,6 +73,15 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   c.observations += 1;
   c.gated += gated ? 1 : 0;
   c.prior_nees += prior_nees;
+  Viewpoint spawn_other;
+  if (p.observation_count == 0 && p.creating_view > 0 && ok(front_end_.view_pose(p.creating_view - 1, &spawn_other))) {
+    const Eigen::Vector3d from_other = (spawn_other.position_world - X_true).normalized();
+    const double baseline_deg = std::acos(std::clamp(from_creating.dot(from_other), -1.0, 1.0)) * 180.0 / M_PI;
+    ByCount& s = by_spawn_baseline_[std::min(5, static_cast<int>(baseline_deg / 2.0))];
+    s.observations += 1;
+    s.gated += gated ? 1 : 0;
+    s.prior_nees += prior_nees;
+  }
   PerPrimitive& q = primitives_[(static_cast<std::uint64_t>(o.index) << 32) | p.creating_view];
   const Eigen::Matrix2d A = o.B.inverse();
   const Eigen::Vector2d in_creating = A * match_error;
@@ -106,6 +115,12 @@ void GateDiagnostics::print(std::FILE* out) const {
       std::fprintf(out, "gate diagnostics, correct matches of primitives with %d+ updates: %.0f, gated %.3f, prior NEES %.2f\n",
                    4 * i, c.observations, c.gated / n, c.prior_nees / n);
     }
+  }
+  for (int i = 0; i < 6; ++i) {
+    const ByCount& c = by_spawn_baseline_[i];
+    const double n = std::max(1.0, c.observations);
+    std::fprintf(out, "gate diagnostics, first re-observations (correct), spawn baseline %d%s deg: %.0f, gated %.3f, prior NEES %.2f\n",
+                 2 * i, i < 5 ? "-" : "+", c.observations, c.gated / n, c.prior_nees / n);
   }
   // Per primitive (>= 5 correct matches): the mean error's spread (common to its matches) and the spread
   // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1).

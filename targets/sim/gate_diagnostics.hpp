@@ -21,8 +21,10 @@ namespace vantage::simtarget {
 
 class GateDiagnostics final : public TrackObserver {
  public:
-  GateDiagnostics(const sim::EmbreeScene& scene, const PinholeIntrinsics& intrinsics, std::int32_t seed_stride_px)
-      : scene_(scene), intrinsics_(intrinsics), stride_px_(seed_stride_px) {}
+  // front_end: for the pose of the image a new primitive was matched against (the one before its creating
+  // view), to relate a new primitive's consistency to its spawn baseline.
+  GateDiagnostics(const sim::EmbreeScene& scene, const ImageFrontEnd& front_end, std::int32_t seed_stride_px)
+      : scene_(scene), front_end_(front_end), intrinsics_(front_end.intrinsics()), stride_px_(seed_stride_px) {}
   void on_observation(const TrackedObservation& o) override;
   void print(std::FILE* out) const;
 
@@ -46,10 +48,12 @@ class GateDiagnostics final : public TrackObserver {
   static void print_bucket(std::FILE* out, const char* name, const Bucket& b);
 
   const sim::EmbreeScene& scene_;
+  const ImageFrontEnd& front_end_;
   PinholeIntrinsics intrinsics_;
   std::int32_t stride_px_;
   Bucket gated_, accepted_;
-  ByCount by_count_[6];                       // observation_count / 4, correct matches
+  ByCount by_count_[6];
+  ByCount by_spawn_baseline_[6];              // first re-observations, by spawn baseline angle / 2 deg                       // observation_count / 4, correct matches
   std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
 };
 

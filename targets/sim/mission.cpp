@@ -177,7 +177,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
     if (options.gate_diagnostics) {
-      diagnostics = std::make_unique<GateDiagnostics>(setup.world->scene(), scene.intrinsics, fc.seed_stride_px);
+      diagnostics = std::make_unique<GateDiagnostics>(setup.world->scene(), g_front_end, fc.seed_stride_px);
     }
   }
   g_front_end.set_observer(diagnostics.get());
