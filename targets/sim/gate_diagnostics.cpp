@@ -90,6 +90,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   q.sum_sq += in_creating * in_creating.transpose();
   q.P_c += o.common_covariance_px2;
   q.R += A * o.R_px2 * A.transpose();
+  q.angle_deg += std::acos(std::clamp(from_creating.dot(from_view), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
 void GateDiagnostics::print_bucket(std::FILE* out, const char* name, const Bucket& b) {
@@ -123,29 +124,38 @@ void GateDiagnostics::print(std::FILE* out) const {
                  2 * i, i < 5 ? "-" : "+", c.observations, c.gated / n, c.prior_nees / n);
   }
   // Per primitive (>= 5 correct matches): the mean error's spread (common to its matches) and the spread
-  // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1).
-  double primitives = 0, matches = 0;
-  Eigen::Matrix2d common = Eigen::Matrix2d::Zero(), varying = Eigen::Matrix2d::Zero();
-  Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero(), R = Eigen::Matrix2d::Zero();
-  for (const auto& entry : primitives_) {
-    const PerPrimitive& q = entry.second;
-    if (q.matches < 5) continue;
-    const Eigen::Vector2d mean = q.sum / q.matches;
-    const Eigen::Matrix2d spread = (q.sum_sq - q.matches * mean * mean.transpose()) / (q.matches - 1);
-    common += mean * mean.transpose() - spread / q.matches;
-    varying += spread;
-    P_c += q.P_c / q.matches;
-    R += q.R / q.matches;
-    primitives += 1;
-    matches += q.matches;
+  // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1); all
+  // primitives, then by their matches' mean view change from the creating view (< 15, 15-30, > 30 deg).
+  const char* names[4] = {"all", "view change < 15 deg", "view change 15-30 deg", "view change > 30 deg"};
+  for (int group = 0; group < 4; ++group) {
+    double primitives = 0, matches = 0;
+    Eigen::Matrix2d common = Eigen::Matrix2d::Zero(), varying = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero(), R = Eigen::Matrix2d::Zero();
+    for (const auto& entry : primitives_) {
+      const PerPrimitive& q = entry.second;
+      if (q.matches < 5) continue;
+      const double angle = q.angle_deg / q.matches;
+      if ((group == 1 && !(angle < 15.0)) || (group == 2 && !(angle >= 15.0 && angle < 30.0)) ||
+          (group == 3 && !(angle >= 30.0))) {
+        continue;
+      }
+      const Eigen::Vector2d mean = q.sum / q.matches;
+      const Eigen::Matrix2d spread = (q.sum_sq - q.matches * mean * mean.transpose()) / (q.matches - 1);
+      common += mean * mean.transpose() - spread / q.matches;
+      varying += spread;
+      P_c += q.P_c / q.matches;
+      R += q.R / q.matches;
+      primitives += 1;
+      matches += q.matches;
+    }
+    const double n = std::max(1.0, primitives);
+    std::fprintf(out,
+                 "gate diagnostics, match error per axis (creating image, px^2; %s: %.0f primitives, %.0f correct "
+                 "matches): common to a primitive's matches %.4f / %.4f (modelled P_c %.4f / %.4f), varying %.4f / "
+                 "%.4f (modelled R %.4f / %.4f)\n",
+                 names[group], primitives, matches, common(0, 0) / n, common(1, 1) / n, P_c(0, 0) / n, P_c(1, 1) / n,
+                 varying(0, 0) / n, varying(1, 1) / n, R(0, 0) / n, R(1, 1) / n);
   }
-  const double n = std::max(1.0, primitives);
-  std::fprintf(out,
-               "gate diagnostics, match error per axis (creating image, px^2; %.0f primitives, %.0f correct matches): "
-               "common to a primitive's matches %.4f / %.4f (modelled P_c %.4f / %.4f), varying %.4f / %.4f "
-               "(modelled R %.4f / %.4f)\n",
-               primitives, matches, common(0, 0) / n, common(1, 1) / n, P_c(0, 0) / n, P_c(1, 1) / n, varying(0, 0) / n,
-               varying(1, 1) / n, R(0, 0) / n, R(1, 1) / n);
 }
 
 }  // namespace vantage::simtarget

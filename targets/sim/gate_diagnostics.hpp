@@ -41,6 +41,7 @@ class GateDiagnostics final : public TrackObserver {
     Eigen::Matrix2d sum_sq = Eigen::Matrix2d::Zero();
     Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero();
     Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+    double angle_deg = 0;  // summed view change from the creating view
   };
   struct ByCount {
     double observations = 0, gated = 0, prior_nees = 0;
