@@ -14,6 +14,8 @@ namespace {
 constexpr int kParams = 6;  // u (2), tilt (2), gain, offset
 using Matrix6d = Eigen::Matrix<double, kParams, kParams>;
 using Vector6d = Eigen::Matrix<double, kParams, 1>;
+// Residual variance floor: the 8-bit quantization of both images.
+constexpr double kMinResidualVariance = 2.0 / 12.0;
 
 // The target-per-reference map of the plane with normal n at X (inverse of plane_affine's).
 Status target_map(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& n,
@@ -48,8 +50,9 @@ struct NormalEquations {
   PatchResiduals<kParams> rows;  // for the correlation model
 };
 
-// The normal equations of the photometric fit at parameters theta (u, t, gain, offset).
-Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
+// The normal equations of the photometric fit at parameters theta (u, t, gain, offset). Not inlined:
+// its temporaries would share the caller's stack frame, beyond the core's limit under ASan.
+[[gnu::noinline]] Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
                   const PhotometricNormalQuery& q, const PinholeIntrinsics& k, const Eigen::Vector3d& e1,
                   const Eigen::Vector3d& e2, const Vector6d& theta, NormalEquations* out) {
   const Eigen::Vector3d n0 = q.normal_world.cast<double>();
@@ -98,6 +101,42 @@ Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPa
   return Status::kOk;
 }
 
+// The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
+[[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
+  const Eigen::LDLT<Matrix6d> ldlt(information);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
+  *step = -ldlt.solve(gradient);
+  return step->allFinite() ? Status::kOk : Status::kNotSpd;
+}
+
+// The tilt's posterior covariance at the solution whose normal equations are eq. The residuals of a
+// resampled patch are not white (bilinear interpolation mixes neighbouring pixels' noise; the
+// interpolation's model error is smooth): the pixels' information is that of a correlated field,
+// H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one correlations.
+// White residuals give M = H. Its own function (not inlined): the 6x6 factorizations would otherwise
+// share one stack frame with the iteration's, beyond the core's frame limit under ASan.
+[[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, double prior_information,
+                                            Eigen::Matrix2d* tilt_covariance) {
+  const double dof = eq.count - kParams;
+  const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+  double rho_x = 0.0;
+  double rho_y = 0.0;
+  lag_one_correlations(eq.rows, &rho_x, &rho_y);
+  const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
+  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
+  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
+  Matrix6d information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
+  information = 0.5 * (information + information.transpose()).eval();
+  information(2, 2) += prior_information;
+  information(3, 3) += prior_information;
+  const Eigen::LDLT<Matrix6d> ldlt(information);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
+  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
+  if (!covariance.allFinite()) return Status::kNotSpd;
+  *tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
+  return Status::kOk;
+}
+
 }  // namespace
 
 Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
@@ -115,8 +154,6 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   const Eigen::Vector3d e1 = n0.cross(helper).normalized();
   const Eigen::Vector3d e2 = n0.cross(e1);
   const double prior_information = 1.0 / query.prior_tilt_variance;
-  // Residual variance floor: the 8-bit quantization of both images.
-  constexpr double kMinResidualVariance = 2.0 / 12.0;
   Vector6d theta;
   theta << query.uv_target_px, 0.0, 0.0, 1.0, 0.0;
   NormalEquations eq;
@@ -134,10 +171,9 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     Vector6d gradient = eq.Jtr / sigma2;
     gradient(2) += prior_information * theta(2);
     gradient(3) += prior_information * theta(3);
-    const Eigen::LDLT<Matrix6d> ldlt(information);
-    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-    Vector6d step = -ldlt.solve(gradient);
-    if (!step.allFinite()) return Status::kNotSpd;
+    Vector6d step;
+    const Status step_status = gauss_newton_step(information, gradient, &step);
+    if (!ok(step_status)) return step_status;
     // Trust region on the tilt: a linearized warp is good to a few tenths of a radian.
     const double tilt_step = step.segment<2>(2).norm();
     constexpr double kMaxTiltStep = 0.3;
@@ -147,32 +183,15 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     if (step.head<2>().norm() < 1e-3 && step.segment<2>(2).norm() < 1e-4) break;
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
-  // The residuals of a resampled patch are not white (bilinear interpolation mixes neighbouring pixels'
-  // noise; the interpolation's model error is smooth): the pixels' information is that of a correlated
-  // field, H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one
-  // correlations. White residuals give M = H.
-  const double dof = eq.count - kParams;
-  const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
-  double rho_x = 0.0;
-  double rho_y = 0.0;
-  lag_one_correlations(eq.rows, &rho_x, &rho_y);
-  const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
-  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
-  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
-  information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
-  information = 0.5 * (information + information.transpose()).eval();
-  information(2, 2) += prior_information;
-  information(3, 3) += prior_information;
-  const Eigen::LDLT<Matrix6d> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
-  const Eigen::Matrix2d tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
+  Eigen::Matrix2d tilt_covariance;
+  const Status covariance_status = tilt_covariance_of(eq, prior_information, &tilt_covariance);
+  if (!ok(covariance_status)) return covariance_status;
   // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
   const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));
   const double half_difference = 0.5 * (tilt_covariance(0, 0) - tilt_covariance(1, 1));
   const double radius = std::sqrt(half_difference * half_difference + tilt_covariance(0, 1) * tilt_covariance(0, 1));
   const double largest = half_trace + radius;
-  if (!covariance.allFinite() || !(half_trace - radius > 0.0)) return Status::kNotSpd;
+  if (!(half_trace - radius > 0.0)) return Status::kNotSpd;
   estimate->normal_world = (n0 + theta(2) * e1 + theta(3) * e2).normalized().cast<float>();
   estimate->tilt_covariance = tilt_covariance;
   estimate->tilt_variance = largest;
