@@ -52,6 +52,30 @@ void reference_template(const std::array<std::uint8_t, kPatchPixels>& patch, con
   }
 }
 
+// A new primitive's match is made with the unwarped seed patch, i.e. on the hypothesis that the
+// surface faces the reference camera; its normal is in fact unknown (tilt variance facing_tilt_variance
+// per axis), and through the plane-induced map between the two views that uncertainty displaces the
+// match as it does a tracked one's (warp_shift_covariance). Zero when the map cannot be formed.
+Eigen::Matrix2d spawn_warp_covariance(const NccTemplate& tmpl, const Eigen::Vector3d& X_world,
+                                      const Viewpoint& reference_view, const Viewpoint& other_view,
+                                      const PinholeIntrinsics& intrinsics, double facing_tilt_variance) {
+  Eigen::Vector2d unused;
+  Eigen::Matrix<double, 2, 3> H_reference;
+  Eigen::Matrix<double, 2, 3> H_other;
+  Eigen::Matrix2d A;
+  std::array<Eigen::Matrix2d, 2> dA;
+  const Eigen::Vector3f facing = (reference_view.position_world - X_world).normalized().cast<float>();
+  if (!ok(project_with_jacobian(X_world, reference_view, intrinsics, &unused, &H_reference)) ||
+      !ok(project_with_jacobian(X_world, other_view, intrinsics, &unused, &H_other)) ||
+      !ok(plane_affine_from_jacobians(H_reference, H_other, facing, &A, &dA))) {
+    return Eigen::Matrix2d::Zero();
+  }
+  TemplateGradientMoments moments;
+  template_gradient_moments(tmpl, &moments);
+  const Eigen::Matrix2d covariance = warp_shift_covariance(moments, A, dA, facing_tilt_variance);
+  return covariance.allFinite() ? covariance : Eigen::Matrix2d::Zero();
+}
+
 }  // namespace
 
 Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
@@ -388,8 +412,26 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
+    TrackedObservation seen;
+    if (observer_ != nullptr) {
+      seen.index = i;
+      seen.prior = p;
+      seen.predicted_px = predicted;
+      seen.observed_px = observed;
+      seen.R_px2 = ekf.R_px2;
+      seen.warp_covariance_px2 = warp_covariance;
+      seen.common_covariance_px2 = common.covariance_px2;
+      seen.common_cross_covariance = common.cross_covariance;
+      seen.B = B;
+      seen.view = view;
+      seen.creating_view = creating;
+    }
     const Status updated =
         iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
+    if (observer_ != nullptr) {
+      seen.outcome = updated;
+      observer_->on_observation(seen);
+    }
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
@@ -697,8 +739,14 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
       observation.R_b_px2 = measurement_R(fit_covariance);
-      if (!ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world)) ||
-          sigma_bound(p.Sigma_world) > config_.max_initial_sigma) {
+      bool triangulated = ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world));
+      if (triangulated && config_.model_normal_uncertainty && config_.model_spawn_normal_uncertainty && config_.adaptive_R) {
+        // Again with the unknown normal's share of the match error (spawn_warp_covariance, at X).
+        observation.R_b_px2 += spawn_warp_covariance(tmpl, p.X_world, reference_view, other_view, intrinsics_,
+                                                     config_.facing_normal_tilt_variance);
+        triangulated = ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world));
+      }
+      if (!triangulated || sigma_bound(p.Sigma_world) > config_.max_initial_sigma) {
         ++stats_.seeds_rejected_triangulation;
         continue;
       }

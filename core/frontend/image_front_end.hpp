@@ -81,6 +81,12 @@ struct FrontEndConfig {
   // (surfaces show in proportion to their projected area) have variance 1/4 each.
   bool model_normal_uncertainty = true;
   double facing_normal_tilt_variance = 0.25;
+  // The same for a new primitive's two-view match (with model_normal_uncertainty): the seed patch is
+  // matched unwarped, i.e. as if the surface faced the reference camera, so the facing prior's tilt
+  // variance displaces that match too; it is added to the match's R before triangulating. Off: it makes a
+  // new primitive's first re-observation consistent whatever the spawn baseline, but the sim mission got
+  // worse with it (README, "Why the mission gates").
+  bool model_spawn_normal_uncertainty = false;
   // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
   // variance exceeds photometric_normal_min_tilt_variance, and whose warp covariance (the normal's
   // uncertainty in this match) outweighs the match's own R, gets its normal estimated from the warp
@@ -155,6 +161,33 @@ struct FrontEndStats {
   EkfStats ekf;
 };
 
+// One tracked observation as it went into the EKF update, with the update's outcome (diagnostics, e.g.
+// targets/sim's --gate-diagnostics, which classifies gated observations against ground truth).
+struct TrackedObservation {
+  PrimitiveIndex index = kInvalidPrimitive;
+  Primitive prior;                          // the primitive before the update
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d observed_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d R_px2 = Eigen::Matrix2d::Zero();           // the independent part (warp covariance included)
+  Eigen::Matrix2d warp_covariance_px2 = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d common_covariance_px2 = Eigen::Matrix2d::Zero();  // P_c, in the creating image
+  Eigen::Matrix<double, 3, 2> common_cross_covariance = Eigen::Matrix<double, 3, 2>::Zero();
+  Eigen::Matrix2d B = Eigen::Matrix2d::Identity();           // creating-image shift -> this image
+  Viewpoint view;
+  Viewpoint creating_view;
+  Status outcome = Status::kOk;             // kGatedOutlier: rejected by the Mahalanobis gate
+};
+
+// Receives every TrackedObservation (ImageFrontEnd::set_observer). Called inside update(); it must not
+// touch the pool.
+class TrackObserver {
+ public:
+  virtual void on_observation(const TrackedObservation& observation) = 0;
+
+ protected:
+  ~TrackObserver() = default;
+};
+
 class ImageFrontEnd final : public MeasurementSource {
  public:
   ImageFrontEnd() = default;
@@ -173,6 +206,8 @@ class ImageFrontEnd final : public MeasurementSource {
   const PinholeIntrinsics& intrinsics() const override { return intrinsics_; }
 
   const FrontEndConfig& config() const { return config_; }
+  // Diagnostics: every observation that reaches the EKF update is shown to observer (nullptr: none).
+  void set_observer(TrackObserver* observer) { observer_ = observer; }
   const FrontEndStats& stats() const { return stats_; }
   bool configured() const { return configured_; }
   bool initialized() const { return initialized_; }
@@ -250,6 +285,7 @@ class ImageFrontEnd final : public MeasurementSource {
   FrontEndStats stats_;
   bool configured_ = false;
   bool initialized_ = false;
+  TrackObserver* observer_ = nullptr;
   std::uint32_t next_view_index_ = 0;
 
   GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight> previous_image_;

@@ -80,6 +80,8 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--model-free-mask", options.model_free_mask,
                "also treat cells under the model's primitives as occupied (paths may get blocked mid-way)");
   app.add_flag("--quiet", quiet, "no live progress line");
+  app.add_flag("--gate-diagnostics", options.gate_diagnostics,
+               "image front end: classify its tracked observations (gated or not) against ground truth, print a summary");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

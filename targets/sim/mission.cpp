@@ -18,6 +18,7 @@
 #include "sim_hal/sim_clock.hpp"
 #include "sim_hal/sim_error.hpp"
 #include "targets/common/search_depth_range.hpp"
+#include "targets/sim/gate_diagnostics.hpp"
 #include "targets/sim/grid_driver.hpp"
 
 namespace vantage::simtarget {
@@ -159,6 +160,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
 
   // Measurement source for this run.
   std::unique_ptr<sim::OracleMeasurementSource> oracle;
+  std::unique_ptr<GateDiagnostics> diagnostics;
   if (options.measurement == MeasurementKind::kOracle) {
     sim::OracleConfig oc;
     oc.intrinsics = scene.intrinsics;
@@ -174,7 +176,11 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
+    if (options.gate_diagnostics) {
+      diagnostics = std::make_unique<GateDiagnostics>(setup.world->scene(), g_front_end, fc.seed_stride_px);
+    }
   }
+  g_front_end.set_observer(diagnostics.get());
   g_measurement.seconds = 0.0;
   g_pool.clear();
   g_goal.ground_truth = setup.ground_truth.get();
@@ -312,6 +318,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     }
   }
   summary.reached_goal = last.kind == SensingActionKind::kDone && last.done == DoneReason::kGoalsReached;
+  g_front_end.set_observer(nullptr);
+  if (diagnostics) diagnostics->print(stderr);
   summary.images = g_executive.images();
   summary.nbv_iterations = g_executive.nbv_iterations();
   summary.path_length = g_executive.path_length_cells() * geo.cell_size_m;

@@ -35,6 +35,7 @@ struct MissionOptions {
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
   bool live = true;                    // live progress line on stderr
+  bool gate_diagnostics = false;       // image front end: classify tracked observations against ground truth
 };
 
 // The world and its ground truth, built once and shared by the runs of --compare.

@@ -1,0 +1,161 @@
+#include "targets/sim/gate_diagnostics.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/geometry/projection.hpp"
+
+namespace vantage::simtarget {
+
+namespace {
+constexpr double kChi2Dof2Q95 = 5.991464547107979;
+}
+
+void GateDiagnostics::on_observation(const TrackedObservation& o) {
+  const bool gated = o.outcome == Status::kGatedOutlier;
+  if (!gated && !ok(o.outcome)) return;
+  Bucket& b = gated ? gated_ : accepted_;
+  b.observations += 1;
+  const Primitive& p = o.prior;
+  const PinholeIntrinsics& k = intrinsics_;
+  Eigen::Vector2d uv_creating;
+  if (!ok(project(p.X_world, o.creating_view, k, &uv_creating))) {
+    b.no_truth += 1;
+    return;
+  }
+  const double stride = stride_px_;
+  const double half = std::floor(stride / 2.0);
+  const Eigen::Vector2d seed(std::round((uv_creating.x() - half) / stride) * stride + half,
+                             std::round((uv_creating.y() - half) / stride) * stride + half);
+  const Eigen::Vector3d ray = back_project_ray_world(seed, o.creating_view, k);
+  const double t = scene_.first_hit(o.creating_view.position_world, ray);
+  Eigen::Vector2d uv_true;
+  Eigen::Vector2d predicted;
+  Eigen::Matrix<double, 2, 3> H;
+  const Eigen::Vector3d X_true = o.creating_view.position_world + t * ray;
+  if (!std::isfinite(t) || !ok(project(X_true, o.view, k, &uv_true)) ||
+      !ok(project_with_jacobian(p.X_world, o.view, k, &predicted, &H))) {
+    b.no_truth += 1;
+    return;
+  }
+  const Eigen::Vector3d to_truth = X_true - o.view.position_world;
+  if (scene_.first_hit(o.view.position_world, to_truth.normalized()) < to_truth.norm() - 0.05) {
+    b.occluded += 1;
+    return;
+  }
+  const Eigen::Vector2d match_error = o.observed_px - uv_true;
+  if (match_error.norm() > 2.0) {
+    b.wrong += 1;
+    return;
+  }
+  if (match_error.norm() > 1.0) {
+    b.off += 1;
+    return;
+  }
+  b.correct += 1;
+  const Eigen::Vector3d e = p.X_world - X_true;
+  const double prior_nees = e.dot(p.Sigma_world.ldlt().solve(e));
+  const Eigen::Vector2d prior_error = uv_true - o.predicted_px;
+  const double prior_chi2 = prior_error.dot((H * p.Sigma_world * H.transpose()).inverse() * prior_error);
+  const Eigen::Matrix2d R_total = o.B * o.common_covariance_px2 * o.B.transpose() + o.R_px2;
+  const double match_chi2 = match_error.dot(R_total.inverse() * match_error);
+  const Eigen::Vector3d from_creating = (o.creating_view.position_world - X_true).normalized();
+  const Eigen::Vector3d from_view = (o.view.position_world - X_true).normalized();
+  b.prior_nees += prior_nees;
+  b.prior_chi2 += prior_chi2;
+  b.prior_chi2_tail += prior_chi2 > kChi2Dof2Q95 ? 1 : 0;
+  b.match_chi2 += match_chi2;
+  b.match_chi2_tail += match_chi2 > kChi2Dof2Q95 ? 1 : 0;
+  b.error_px += match_error.norm();
+  b.angle_deg += std::acos(std::clamp(from_creating.dot(from_view), -1.0, 1.0)) * 180.0 / M_PI;
+  b.young += p.observation_count < 3 ? 1 : 0;
+  ByCount& c = by_count_[std::min<std::uint32_t>(5, p.observation_count / 4)];
+  c.observations += 1;
+  c.gated += gated ? 1 : 0;
+  c.prior_nees += prior_nees;
+  Viewpoint spawn_other;
+  if (p.observation_count == 0 && p.creating_view > 0 && ok(front_end_.view_pose(p.creating_view - 1, &spawn_other))) {
+    const Eigen::Vector3d from_other = (spawn_other.position_world - X_true).normalized();
+    const double baseline_deg = std::acos(std::clamp(from_creating.dot(from_other), -1.0, 1.0)) * 180.0 / M_PI;
+    ByCount& s = by_spawn_baseline_[std::min(5, static_cast<int>(baseline_deg / 2.0))];
+    s.observations += 1;
+    s.gated += gated ? 1 : 0;
+    s.prior_nees += prior_nees;
+  }
+  PerPrimitive& q = primitives_[(static_cast<std::uint64_t>(o.index) << 32) | p.creating_view];
+  const Eigen::Matrix2d A = o.B.inverse();
+  const Eigen::Vector2d in_creating = A * match_error;
+  q.matches += 1;
+  q.sum += in_creating;
+  q.sum_sq += in_creating * in_creating.transpose();
+  q.P_c += o.common_covariance_px2;
+  q.R += A * o.R_px2 * A.transpose();
+  q.angle_deg += std::acos(std::clamp(from_creating.dot(from_view), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+void GateDiagnostics::print_bucket(std::FILE* out, const char* name, const Bucket& b) {
+  const double n = std::max(1.0, b.correct);
+  std::fprintf(out,
+               "gate diagnostics, %s: %.0f observations: no truth %.0f, occluded %.0f, wrong (> 2 px) %.0f, off (1-2 px) "
+               "%.0f, correct (<= 1 px) %.0f; of the correct: prior NEES %.2f (3), prior chi2 %.2f (2, above q95 %.3f), "
+               "match chi2 %.2f (2, above q95 %.3f), mean error %.3f px, view change %.1f deg, < 3 updates %.3f\n",
+               name, b.observations, b.no_truth, b.occluded, b.wrong, b.off, b.correct, b.prior_nees / n, b.prior_chi2 / n,
+               b.prior_chi2_tail / n, b.match_chi2 / n, b.match_chi2_tail / n, b.error_px / n, b.angle_deg / n, b.young / n);
+}
+
+void GateDiagnostics::print(std::FILE* out) const {
+  print_bucket(out, "gated", gated_);
+  print_bucket(out, "accepted", accepted_);
+  for (int i = 0; i < 6; ++i) {
+    const ByCount& c = by_count_[i];
+    const double n = std::max(1.0, c.observations);
+    if (i < 5) {
+      std::fprintf(out, "gate diagnostics, correct matches of primitives with %d-%d updates: %.0f, gated %.3f, prior NEES %.2f\n",
+                   4 * i, 4 * i + 3, c.observations, c.gated / n, c.prior_nees / n);
+    } else {
+      std::fprintf(out, "gate diagnostics, correct matches of primitives with %d+ updates: %.0f, gated %.3f, prior NEES %.2f\n",
+                   4 * i, c.observations, c.gated / n, c.prior_nees / n);
+    }
+  }
+  for (int i = 0; i < 6; ++i) {
+    const ByCount& c = by_spawn_baseline_[i];
+    const double n = std::max(1.0, c.observations);
+    std::fprintf(out, "gate diagnostics, first re-observations (correct), spawn baseline %d%s deg: %.0f, gated %.3f, prior NEES %.2f\n",
+                 2 * i, i < 5 ? "-" : "+", c.observations, c.gated / n, c.prior_nees / n);
+  }
+  // Per primitive (>= 5 correct matches): the mean error's spread (common to its matches) and the spread
+  // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1); all
+  // primitives, then by their matches' mean view change from the creating view (< 15, 15-30, > 30 deg).
+  const char* names[4] = {"all", "view change < 15 deg", "view change 15-30 deg", "view change > 30 deg"};
+  for (int group = 0; group < 4; ++group) {
+    double primitives = 0, matches = 0;
+    Eigen::Matrix2d common = Eigen::Matrix2d::Zero(), varying = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero(), R = Eigen::Matrix2d::Zero();
+    for (const auto& entry : primitives_) {
+      const PerPrimitive& q = entry.second;
+      if (q.matches < 5) continue;
+      const double angle = q.angle_deg / q.matches;
+      if ((group == 1 && !(angle < 15.0)) || (group == 2 && !(angle >= 15.0 && angle < 30.0)) ||
+          (group == 3 && !(angle >= 30.0))) {
+        continue;
+      }
+      const Eigen::Vector2d mean = q.sum / q.matches;
+      const Eigen::Matrix2d spread = (q.sum_sq - q.matches * mean * mean.transpose()) / (q.matches - 1);
+      common += mean * mean.transpose() - spread / q.matches;
+      varying += spread;
+      P_c += q.P_c / q.matches;
+      R += q.R / q.matches;
+      primitives += 1;
+      matches += q.matches;
+    }
+    const double n = std::max(1.0, primitives);
+    std::fprintf(out,
+                 "gate diagnostics, match error per axis (creating image, px^2; %s: %.0f primitives, %.0f correct "
+                 "matches): common to a primitive's matches %.4f / %.4f (modelled P_c %.4f / %.4f), varying %.4f / "
+                 "%.4f (modelled R %.4f / %.4f)\n",
+                 names[group], primitives, matches, common(0, 0) / n, common(1, 1) / n, P_c(0, 0) / n, P_c(1, 1) / n,
+                 varying(0, 0) / n, varying(1, 1) / n, R(0, 0) / n, R(1, 1) / n);
+  }
+}
+
+}  // namespace vantage::simtarget

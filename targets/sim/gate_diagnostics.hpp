@@ -1,0 +1,61 @@
+#pragma once
+// --gate-diagnostics: classifies the image front end's tracked observations against the simulator's ground
+// truth, to tell why the Mahalanobis gate rejects what it rejects (core/frontend/README.md, "Consistency").
+// A primitive's true point is where the ray of its seed pixel meets the surface (the seed pixel defines
+// the point a primitive stands for; it is recovered by snapping X's projection into the creating view to
+// the seed lattice, as tests/integration/frontend_consistency_test.cpp does). Each observation is then:
+// no truth (the seed ray misses the mesh), occluded (the true point is hidden in this view: an occlusion
+// misprediction), wrong (> 2 px from the true point's projection), off (1-2 px), or correct (<= 1 px:
+// a gated correct match means the filter was over-confident). For correct matches it splits the
+// innovation into the prior's part (truth projection vs prediction against H Sigma H^T) and the match's
+// part (observation vs truth projection against B P_c B^T + R), and per primitive it splits the match
+// errors, taken back into the creating image by B^-1, into the part common to all of a primitive's
+// matches and the part that varies (what P_c and R model).
+#include <cstdio>
+#include <map>
+
+#include "core/frontend/image_front_end.hpp"
+#include "sim_hal/scene/embree_scene.hpp"
+
+namespace vantage::simtarget {
+
+class GateDiagnostics final : public TrackObserver {
+ public:
+  // front_end: for the pose of the image a new primitive was matched against (the one before its creating
+  // view), to relate a new primitive's consistency to its spawn baseline.
+  GateDiagnostics(const sim::EmbreeScene& scene, const ImageFrontEnd& front_end, std::int32_t seed_stride_px)
+      : scene_(scene), front_end_(front_end), intrinsics_(front_end.intrinsics()), stride_px_(seed_stride_px) {}
+  void on_observation(const TrackedObservation& o) override;
+  void print(std::FILE* out) const;
+
+ private:
+  struct Bucket {
+    double observations = 0, no_truth = 0, occluded = 0, wrong = 0, off = 0, correct = 0;
+    // Over correct matches:
+    double prior_nees = 0, prior_chi2 = 0, prior_chi2_tail = 0, match_chi2 = 0, match_chi2_tail = 0, error_px = 0;
+    double angle_deg = 0, young = 0;
+  };
+  struct PerPrimitive {
+    double matches = 0;
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d sum_sq = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+    double angle_deg = 0;  // summed view change from the creating view
+  };
+  struct ByCount {
+    double observations = 0, gated = 0, prior_nees = 0;
+  };
+  static void print_bucket(std::FILE* out, const char* name, const Bucket& b);
+
+  const sim::EmbreeScene& scene_;
+  const ImageFrontEnd& front_end_;
+  PinholeIntrinsics intrinsics_;
+  std::int32_t stride_px_;
+  Bucket gated_, accepted_;
+  ByCount by_count_[6];
+  ByCount by_spawn_baseline_[6];              // first re-observations, by spawn baseline angle / 2 deg                       // observation_count / 4, correct matches
+  std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
+};
+
+}  // namespace vantage::simtarget
