@@ -112,6 +112,19 @@ bool set_up(benchmark::State& state, Views* views) {
   return true;
 }
 
+// Re-initializes the front end from the first pair, then replaces the pool's spawned primitives by the
+// bench's (and has the front end forget its per-slot tables, which described the spawned ones).
+bool restart_with_bench_pool(const Views& views) {
+  vantage::UpdateReport report;
+  if (!vantage::ok(g_front_end.initialize(g_first.view().as_const(), views.first, g_second.view().as_const(),
+                                          views.second, g_pool, &report)) ||
+      !fill_pool(views.k, views.first)) {
+    return false;
+  }
+  g_front_end.forget_primitive_tables();
+  return true;
+}
+
 // Runs the timed loop: prepare() (not timed) then one update of the frame, timed by the update's own
 // thread CPU time (the machine is shared); reports the per-frame counts.
 template <typename Prepare>
@@ -162,13 +175,8 @@ void BM_FrontEndTrack20kVga(benchmark::State& state) {
   if (!set_up(state, &views)) return;
   run_updates(state, views, [&views] {
     vantage::UpdateReport report;
-    if (!vantage::ok(g_front_end.initialize(g_first.view().as_const(), views.first, g_second.view().as_const(),
-                                            views.second, g_pool, &report)) ||
-        !fill_pool(views.k, views.first)) {
-      return false;
-    }
-    g_front_end.forget_primitive_tables();  // the bench's primitives replaced the spawned ones
-    return vantage::ok(g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report));
+    return restart_with_bench_pool(views) &&
+           vantage::ok(g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report));
   });
 }
 BENCHMARK(BM_FrontEndTrack20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
@@ -180,14 +188,7 @@ void BM_FrontEndFrame20kVga(benchmark::State& state) {
   Views views;
   if (!set_up(state, &views)) return;
   run_updates(state, views, [&views] {
-    vantage::UpdateReport report;
-    if (!vantage::ok(g_front_end.initialize(g_first.view().as_const(), views.first, g_second.view().as_const(),
-                                            views.second, g_pool, &report)) ||
-        !fill_pool(views.k, views.first)) {
-      return false;
-    }
-    g_front_end.forget_primitive_tables();  // the bench's primitives replaced the spawned ones
-    return true;
+    return restart_with_bench_pool(views);
   });
 }
 BENCHMARK(BM_FrontEndFrame20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
