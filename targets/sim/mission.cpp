@@ -18,7 +18,7 @@
 #include "sim_hal/sim_clock.hpp"
 #include "sim_hal/sim_error.hpp"
 #include "targets/common/search_depth_range.hpp"
-#include "targets/sim/gate_diagnostics.hpp"
+#include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "targets/sim/grid_driver.hpp"
 
 namespace vantage::simtarget {
@@ -160,7 +160,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
 
   // Measurement source for this run.
   std::unique_ptr<sim::OracleMeasurementSource> oracle;
-  std::unique_ptr<GateDiagnostics> diagnostics;
+  std::unique_ptr<sim::GateDiagnostics> diagnostics;
   if (options.measurement == MeasurementKind::kOracle) {
     sim::OracleConfig oc;
     oc.intrinsics = scene.intrinsics;
@@ -177,7 +177,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
     if (options.gate_diagnostics) {
-      diagnostics = std::make_unique<GateDiagnostics>(setup.world->scene(), g_front_end, fc.seed_stride_px);
+      diagnostics = std::make_unique<sim::GateDiagnostics>(setup.world->scene(), g_front_end, fc.seed_stride_px);
     }
   }
   g_front_end.set_observer(diagnostics.get());

@@ -17,7 +17,7 @@
 #include "core/frontend/image_front_end.hpp"
 #include "sim_hal/scene/embree_scene.hpp"
 
-namespace vantage::simtarget {
+namespace vantage::sim {
 
 class GateDiagnostics final : public TrackObserver {
  public:
@@ -58,4 +58,4 @@ class GateDiagnostics final : public TrackObserver {
   std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
 };
 
-}  // namespace vantage::simtarget
+}  // namespace vantage::sim

@@ -1,11 +1,11 @@
-#include "targets/sim/gate_diagnostics.hpp"
+#include "sim_hal/ground_truth/gate_diagnostics.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 #include "core/geometry/projection.hpp"
 
-namespace vantage::simtarget {
+namespace vantage::sim {
 
 namespace {
 constexpr double kChi2Dof2Q95 = 5.991464547107979;
@@ -158,4 +158,4 @@ void GateDiagnostics::print(std::FILE* out) const {
   }
 }
 
-}  // namespace vantage::simtarget
+}  // namespace vantage::sim
