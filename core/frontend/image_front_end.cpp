@@ -345,11 +345,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     Viewpoint creating;
     Eigen::Matrix2d A = Eigen::Matrix2d::Identity();
     std::array<Eigen::Matrix2d, 2> dA;
+    Eigen::Matrix<double, 2, 3> H_creating;
     const bool have_creating = ok(view_pose(p.creating_view, &creating));
     if (have_creating) {
       // The map and its tilt derivatives from the creating view's Jacobian and this view's (H).
       Eigen::Vector2d in_creating;
-      Eigen::Matrix<double, 2, 3> H_creating;
       if (!ok(project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating)) ||
           !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
@@ -394,8 +394,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (config_.photometric_normal && have_creating &&
         normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance &&
         warp_covariance.trace() > measurement_R(fit_covariance).trace()) {
-      (void)refine_normal_photometric(i, image, creating, view, pool, &tmpl, &B, &warp_covariance, &observed,
-                                      &fit_covariance);
+      (void)refine_normal_photometric(i, image, creating, view, H_creating, H, pool, &tmpl, &B, &warp_covariance,
+                                      &observed, &fit_covariance);
     }
     correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
     ++report.matched;
@@ -462,7 +462,9 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
-                                              const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl_out,
+                                              const Viewpoint& view, const Eigen::Matrix<double, 2, 3>& H_creating,
+                                              const Eigen::Matrix<double, 2, 3>& H_view, PrimitivePoolView& pool,
+                                              NccTemplate* tmpl_out,
                                               Eigen::Matrix2d* B,
                                               Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
                                               Eigen::Matrix2d* fit_covariance) {
@@ -485,9 +487,11 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
       !(estimate.tilt_variance < current_variance)) {
     return false;
   }
-  // The match again, with the template warped by the estimated plane.
+  // The match again, with the template warped by the estimated plane (its map and tilt derivatives from
+  // the Jacobians track() already has).
   Eigen::Matrix2d A;
-  if (!ok(plane_affine(p.X_world, estimate.normal_world, creating, view, intrinsics_, &A))) return false;
+  std::array<Eigen::Matrix2d, 2> dA;
+  if (!ok(plane_affine_from_jacobians(H_creating, H_view, estimate.normal_world, &A, &dA))) return false;
   NccTemplate tmpl;
   Eigen::Matrix2d B_new;
   reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B_new);
@@ -499,12 +503,9 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
                        &covariance)) {
     return false;
   }
-  Eigen::Matrix2d warp = Eigen::Matrix2d::Zero();
-  std::array<Eigen::Matrix2d, 2> dA;
-  if (config_.model_normal_uncertainty &&
-      ok(plane_affine_tilt_derivatives(p.X_world, estimate.normal_world, creating, view, intrinsics_, A, &dA))) {
-    warp = warp_shift_covariance(tmpl, A, dA, estimate.tilt_variance);
-  }
+  const Eigen::Matrix2d warp = config_.model_normal_uncertainty
+                                  ? warp_shift_covariance(tmpl, A, dA, estimate.tilt_variance)
+                                  : Eigen::Matrix2d::Zero();
   p.normal_world = estimate.normal_world;
   set_normal_tilt_variance(i, estimate.tilt_variance);
   *tmpl_out = tmpl;

@@ -238,8 +238,11 @@ class ImageFrontEnd final : public MeasurementSource {
   // Estimates matched primitive i's normal photometrically (FrontEndConfig::photometric_normal) and
   // matches it again near *observed with the template warped by it; on success adopts the normal and its
   // tilt variance and replaces the template, B, the warp covariance, the match and its fit covariance. False: unchanged.
+  // H_creating, H_view: the Jacobians of X's projections into both views.
   bool refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
-                                 const Viewpoint& view, PrimitivePoolView& pool, NccTemplate* tmpl, Eigen::Matrix2d* B,
+                                 const Viewpoint& view, const Eigen::Matrix<double, 2, 3>& H_creating,
+                                 const Eigen::Matrix<double, 2, 3>& H_view, PrimitivePoolView& pool,
+                                 NccTemplate* tmpl, Eigen::Matrix2d* B,
                                  Eigen::Matrix2d* warp_covariance, Eigen::Vector2d* observed,
                                  Eigen::Matrix2d* fit_covariance);
   // Replaces a match's fit covariance by the one with the residuals' spatial correlation
