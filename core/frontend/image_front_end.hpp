@@ -69,7 +69,7 @@ struct FrontEndConfig {
   double match_sigma_floor_px = 0.05;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
   // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
-  // test it made the plane more conservative (NEES 2.69 -> 2.26) and let a wrong match on the bunny pass
+  // test it made the plane more conservative (NEES 2.66 -> 2.26) and let a wrong match on the bunny pass
   // the gate, and it costs about 12,600 instructions a match (README, "Consistency").
   bool correlated_fit_covariance = false;
   // Triangulations whose largest standard deviation exceeds this (scene units) carry no usable depth.
@@ -162,7 +162,8 @@ struct FrontEndStats {
 };
 
 // One tracked observation as it went into the EKF update, with the update's outcome (diagnostics, e.g.
-// targets/sim's --gate-diagnostics, which classifies gated observations against ground truth).
+// vantage-sim --gate-diagnostics, sim_hal/ground_truth/gate_diagnostics.hpp, which classifies gated
+// observations against ground truth).
 struct TrackedObservation {
   PrimitiveIndex index = kInvalidPrimitive;
   Primitive prior;                          // the primitive before the update
