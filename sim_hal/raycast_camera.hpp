@@ -1,11 +1,13 @@
 #pragma once
 // The simulated camera: Embree 3 ray casting (rtcIntersect16 packets of 4x4 pixels, render_threads
 // threads) of the scene at the pose from a SimPoseSource, producing the same 8-bit gray frames as the
-// V4L2/libcamera drivers. Pixel (u, v) casts the ray through its centre, undistorted with the
-// intrinsics' k1, k2 (so the image is distorted like a real lens). Gray = 255 * albedo(X) *
-// (ambient + sum_l intensity_l * max(0, n . l)), plus optional Gaussian noise, rounded and clamped.
-// n is the triangle's geometric normal turned toward the camera. Deterministic: the noise of pixel i in
-// frame f is a hash of (seed, f, i), independent of the thread split.
+// V4L2/libcamera drivers. Pixel (u, v) averages shading.samples_per_axis^2 rays on a regular grid over
+// its square (1: the ray through its centre), undistorted with the intrinsics' k1, k2 (so the image is
+// distorted like a real lens). Per ray, radiance = 255 * albedo(X) * (ambient + sum_l intensity_l *
+// max(0, n . l)), background where it misses; the mean plus optional Gaussian noise is rounded and
+// clamped. n is the triangle's geometric normal (NormalMode::kFlat) or the interpolated corner normal
+// (kSmooth), turned toward the camera. The depth image is the pixel-centre ray's camera z.
+// Deterministic: the noise of pixel i in frame f is a hash of (seed, f, i), independent of the thread split.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -61,6 +63,7 @@ class RaycastCamera final : public hal::Camera {
   SolidTexture texture_;
   Eigen::AlignedBox3d object_bounds_;  // rays that cannot reach it are not cast
   std::vector<float> ray_dir_cam_;  // per pixel (x, y) of the undistorted ray (x, y, 1), camera frame
+  std::vector<float> ray_dir_corner_cam_;  // the same per pixel corner, (width + 1) x (height + 1); N > 1 only
   std::uint32_t sequence_ = 0;
 };
 

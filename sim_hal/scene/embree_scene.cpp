@@ -68,6 +68,7 @@ EmbreeScene::EmbreeScene(TriangleMesh mesh) : mesh_(std::move(mesh)) {
       if (i >= vertex_count) throw SimError("embree scene: triangle index out of range");
     }
   }
+  corner_normals_ = smooth_corner_normals(mesh_, kSmoothCreaseAngleRad);
   device_ = rtcNewDevice("threads=1");
   if (device_ == nullptr) throw SimError("embree scene: rtcNewDevice failed");
   scene_ = rtcNewScene(device_);

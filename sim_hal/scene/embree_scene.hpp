@@ -2,6 +2,7 @@
 // The world's geometry for ray casting and closest-point queries: one Embree 3 device and scene holding a
 // TriangleMesh (kept alongside). Thread-safe for concurrent queries after construction.
 #include <cstdint>
+#include <vector>
 
 #include <Eigen/Core>
 #include <embree3/rtcore.h>
@@ -9,6 +10,10 @@
 #include "sim_hal/scene/triangle_mesh.hpp"
 
 namespace vantage::sim {
+
+// Neighbouring triangles whose planes differ by more than this are not smoothed across (a box's edges,
+// a cut's rim); the bunny's neighbouring facets differ by far less.
+inline constexpr double kSmoothCreaseAngleRad = 60.0 * 3.14159265358979323846 / 180.0;
 
 struct ClosestPoint {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
@@ -26,6 +31,9 @@ class EmbreeScene {
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
   const TriangleMesh& mesh() const { return mesh_; }
+  // Smooth-shading normals per triangle corner (smooth_corner_normals with kSmoothCreaseAngleRad),
+  // computed once here after the mesh has its final placement.
+  const std::vector<Eigen::Vector3f>& corner_normals() const { return corner_normals_; }
   RTCScene handle() const { return scene_; }
 
   // True when the open segment from `from` to `to` hits the mesh (ends shortened by `epsilon` units).
@@ -37,6 +45,7 @@ class EmbreeScene {
 
  private:
   TriangleMesh mesh_;
+  std::vector<Eigen::Vector3f> corner_normals_;
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
 };

@@ -144,6 +144,13 @@ void read_camera(TableReader& r, SceneConfig& c) {
     if (*v < 1 || *v > 64) r.fail_field("render_threads", "must be in [1, 64]");
     c.render_threads = static_cast<int>(*v);
   }
+  if (auto v = r.integer("pixel_samples_per_axis")) {
+    if (*v < 1 || *v > kMaxPixelSamplesPerAxis) {
+      r.fail_field("pixel_samples_per_axis", "must be in [1, " + std::to_string(kMaxPixelSamplesPerAxis) + "], got " +
+                                                 std::to_string(*v));
+    }
+    c.shading.samples_per_axis = static_cast<int>(*v);
+  }
   if (auto v = r.number("pixel_noise_sigma")) c.shading.pixel_noise_sigma = *v;
   if (auto v = r.integer("background_gray")) {
     if (*v < 0 || *v > 255) r.fail_field("background_gray", "must be in [0, 255]");
@@ -165,6 +172,11 @@ void read_grid(TableReader& r, SceneConfig& c) {
 
 void read_lighting(TableReader& r, SceneConfig& c) {
   if (auto v = r.number("ambient")) c.shading.ambient = *v;
+  if (auto v = r.string("normals")) {
+    if (*v == "flat") c.shading.normals = NormalMode::kFlat;
+    else if (*v == "smooth") c.shading.normals = NormalMode::kSmooth;
+    else r.fail_field("normals", "expected \"flat\" or \"smooth\", got \"" + *v + "\"");
+  }
   if (const toml::node* node = r.get("lights")) {
     const toml::array* lights = node->as_array();
     if (lights == nullptr) r.fail_field("lights", "expected an array of tables ([[lighting.lights]])");
@@ -235,6 +247,7 @@ SceneConfig from_table(const toml::table& root, const std::string& source) {
 }  // namespace
 
 const char* to_string(AlbedoMode mode) { return mode == AlbedoMode::kTexture ? "texture" : "constant"; }
+const char* to_string(NormalMode mode) { return mode == NormalMode::kFlat ? "flat" : "smooth"; }
 
 SceneConfig SceneConfig::paper_defaults() {
   SceneConfig c;
@@ -275,6 +288,10 @@ void validate_scene_config(const SceneConfig& c) {
   require(ok(k.validate()), s, "camera", "invalid intrinsics");
   require(c.render_threads >= 1, s, "camera.render_threads", "must be >= 1");
   require(c.shading.pixel_noise_sigma >= 0.0, s, "camera.pixel_noise_sigma", "must be >= 0");
+  require(c.shading.samples_per_axis >= 1 && c.shading.samples_per_axis <= kMaxPixelSamplesPerAxis, s,
+          "camera.pixel_samples_per_axis", "must be in [1, " + std::to_string(kMaxPixelSamplesPerAxis) + "]");
+  require(c.shading.normals == NormalMode::kFlat || c.shading.normals == NormalMode::kSmooth, s, "lighting.normals",
+          "must be flat or smooth");
   require(c.grid.cells_per_side >= 2, s, "grid.cells_per_side", "must be >= 2");
   require(c.grid.cell_size_m > 0.0 && std::isfinite(c.grid.cell_size_m), s, "grid.cell_size", "must be positive");
   require(std::isfinite(c.grid.elevation_m), s, "grid.elevation", "must be finite");

@@ -36,8 +36,20 @@ struct AlbedoConfig {
   double texture_feature_size = 0.6;  // kTexture: scene units of the finest noise octave's lattice
 };
 
+// Which normal the Lambertian term uses: the hit triangle's own (flat facets) or the corner normals
+// interpolated with the hit's barycentrics (EmbreeScene::corner_normals, a smooth surface).
+enum class NormalMode { kFlat, kSmooth };
+const char* to_string(NormalMode mode);
+
+inline constexpr int kMaxPixelSamplesPerAxis = 8;
+
 struct ShadingConfig {
   std::vector<DirectionalLight> lights;  // in the world frame
+  // Pixel-area integration: a pixel's gray is the mean over samples_per_axis^2 rays on a regular grid
+  // inside the pixel's square (a box filter, 100% fill factor), as a sensor integrates irradiance over
+  // its area; 1 is one ray through the pixel centre. In [1, kMaxPixelSamplesPerAxis].
+  int samples_per_axis = 1;
+  NormalMode normals = NormalMode::kFlat;
   double ambient = 0.25;                 // added to the Lambertian sum
   AlbedoConfig albedo;
   double pixel_noise_sigma = 0.0;        // gray levels, Gaussian, added before rounding

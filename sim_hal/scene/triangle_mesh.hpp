@@ -23,4 +23,11 @@ struct TriangleMesh {
   double triangle_area(std::size_t t) const;
 };
 
+// Smooth-shading normals, one per triangle corner (3 * t + corner), unit length, on the side of triangle
+// t's own winding normal: the angle-weighted mean of the normals of the triangles around the corner's
+// vertex whose planes lie within crease_angle_rad of triangle t's (so a box stays flat-faced while a
+// finely tessellated curved surface shades smoothly). Neighbours wound the other way count with their
+// normal flipped. A degenerate triangle's corners get its neighbours' mean, or zero when there is none.
+std::vector<Eigen::Vector3f> smooth_corner_normals(const TriangleMesh& mesh, double crease_angle_rad);
+
 }  // namespace vantage::sim

@@ -54,6 +54,8 @@ TEST_CASE("the example scene file parses and reproduces the defaults", "[sim_hal
   }
   CHECK(file.shading.ambient == d.shading.ambient);
   CHECK(file.shading.albedo.mode == d.shading.albedo.mode);
+  CHECK(file.shading.samples_per_axis == d.shading.samples_per_axis);
+  CHECK(file.shading.normals == d.shading.normals);
   CHECK(file.robot_speed == d.robot_speed);
   CHECK(file.seed == d.seed);
 }
@@ -88,6 +90,35 @@ TEST_CASE("scene-file errors name the file and the field", "[sim_hal][config]") 
   CHECK_THAT(parse_error("[grid]\ncell_size = -2\n"), Contains("grid.cell_size"));
   CHECK_THAT(parse_error("[camera\n"), Contains("scene.toml") && Contains("line 1"));
   CHECK_THAT(parse_error("camera = 3\n"), Contains("camera") && Contains("table"));
+}
+
+TEST_CASE("pixel sampling and normals are read and validated with the file and key named", "[sim_hal][config]") {
+  const SceneConfig c = parse_scene_config("[camera]\npixel_samples_per_axis = 3\n[lighting]\nnormals = \"flat\"\n",
+                                           "scene.toml");
+  CHECK(c.shading.samples_per_axis == 3);
+  CHECK(c.shading.normals == NormalMode::kFlat);
+  CHECK(parse_scene_config("[lighting]\nnormals = \"smooth\"\n", "s.toml").shading.normals == NormalMode::kSmooth);
+  for (const char* bad : {"0", "9", "-2"}) {
+    CHECK_THAT(parse_error(std::string("[camera]\npixel_samples_per_axis = ") + bad + "\n"),
+               Contains("scene.toml: camera.pixel_samples_per_axis: must be in [1, 8]"));
+  }
+  CHECK_THAT(parse_error("[camera]\npixel_samples_per_axis = 2.5\n"),
+             Contains("camera.pixel_samples_per_axis") && Contains("integer"));
+  CHECK_THAT(parse_error("[lighting]\nnormals = \"phong\"\n"),
+             Contains("scene.toml: lighting.normals") && Contains("phong"));
+  CHECK_THAT(parse_error("[lighting]\nnormals = 1\n"), Contains("lighting.normals") && Contains("string"));
+  // A configuration built in code is checked too.
+  SceneConfig in_code = SceneConfig::paper_defaults();
+  in_code.source = "code";
+  in_code.shading.samples_per_axis = 0;
+  try {
+    validate_scene_config(in_code);
+    FAIL("samples_per_axis 0 accepted");
+  } catch (const SimError& e) {
+    CHECK_THAT(std::string(e.what()), Contains("code: camera.pixel_samples_per_axis"));
+  }
+  // Every message is one line.
+  CHECK(parse_error("[camera]\npixel_samples_per_axis = 9\n").find('\n') == std::string::npos);
 }
 
 TEST_CASE("impossible intrinsics are refused with the field named", "[sim_hal][config]") {
