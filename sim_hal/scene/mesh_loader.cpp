@@ -124,6 +124,7 @@ double mean_silhouette_fraction(const TriangleMesh& mesh, double distance, const
   RaycastCameraConfig camera_config;
   camera_config.intrinsics = k;
   camera_config.threads = 2;
+  camera_config.shading.samples_per_axis = 1;  // only the (pixel-centre) depth is used
   const RaycastCamera camera(scene, camera_config, nullptr);
   std::vector<std::uint8_t> pixels(static_cast<std::size_t>(k.width_px) * k.height_px);
   DepthImage depth;

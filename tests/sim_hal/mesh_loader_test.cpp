@@ -111,6 +111,7 @@ TEST_CASE("the normalized bunny is centred and z-up and fills about half the ima
   // four horizontal views at distance 40.
   const EmbreeScene scene{TriangleMesh(bunny)};
   RaycastCameraConfig camera_config;
+  camera_config.shading.samples_per_axis = 1;  // only the depth (pixel centres) is used
   const RaycastCamera camera(scene, camera_config, nullptr);
   std::vector<std::uint8_t> pixels(640 * 480);
   DepthImage depth;
