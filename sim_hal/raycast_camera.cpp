@@ -1,7 +1,6 @@
 #include "sim_hal/raycast_camera.hpp"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
