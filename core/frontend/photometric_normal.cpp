@@ -54,15 +54,51 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
-// LDLT solves one column at a time (vector solves; a matrix right-hand side goes through Eigen's blocked
-// triangular solver, more code for a 6x6).
-Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
-  Matrix6d out;
-  for (int j = 0; j < kParams; ++j) {
-    const Vector6d column = rhs.col(j);
-    out.col(j) = ldlt.solve(column);
+// Solves A X = B for the columns [first, first + count) of B (the other columns of *X are left as they
+// are), A symmetric 6x6: a plain Cholesky factorization when A is positive definite (the usual case),
+// else Eigen's LDLT with its positivity check, as before (it also takes semidefinite systems, giving
+// zero for the components of zero pivots). False when neither holds.
+[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Matrix6d& B, int first, int count, Matrix6d* X) {
+  double L[kParams][kParams] = {};
+  bool positive = true;
+  for (int j = 0; j < kParams && positive; ++j) {
+    double d = A(j, j);
+    for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+    if (!(d > 0.0) || !std::isfinite(d)) {
+      positive = false;
+      break;
+    }
+    L[j][j] = std::sqrt(d);
+    const double inverse = 1.0 / L[j][j];
+    for (int i = j + 1; i < kParams; ++i) {
+      double v = A(i, j);
+      for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+      L[i][j] = v * inverse;
+    }
   }
-  return out;
+  if (positive) {
+    for (int c = first; c < first + count; ++c) {
+      double y[kParams];
+      for (int i = 0; i < kParams; ++i) {
+        double v = B(i, c);
+        for (int k = 0; k < i; ++k) v -= L[i][k] * y[k];
+        y[i] = v / L[i][i];
+      }
+      for (int i = kParams - 1; i >= 0; --i) {
+        double v = y[i];
+        for (int k = i + 1; k < kParams; ++k) v -= L[k][i] * (*X)(k, c);
+        (*X)(i, c) = v / L[i][i];
+      }
+    }
+    return true;
+  }
+  const Eigen::LDLT<Matrix6d> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+  for (int c = first; c < first + count; ++c) {
+    const Vector6d column = B.col(c);
+    X->col(c) = ldlt.solve(column);
+  }
+  return true;
 }
 
 struct NormalEquations {
@@ -116,9 +152,11 @@ struct NormalEquations {
 
 // The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
 [[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
-  const Eigen::LDLT<Matrix6d> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  *step = -ldlt.solve(gradient);
+  Matrix6d rhs = Matrix6d::Zero();
+  rhs.col(0) = gradient;
+  Matrix6d solution = Matrix6d::Zero();
+  if (!solve_spd(information, rhs, 0, 1, &solution)) return Status::kNotSpd;
+  *step = -solution.col(0);
   return step->allFinite() ? Status::kOk : Status::kNotSpd;
 }
 
@@ -147,16 +185,16 @@ struct NormalEquations {
   }
   lag_one_correlations(rows, &rho_x, &rho_y);
   const Matrix6d meat = correlated_information_meat(rows, rho_x, rho_y);
-  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
-  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
-  Matrix6d information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
+  Matrix6d meat_solved;
+  if (!solve_spd(meat, eq.JtJ, 0, kParams, &meat_solved)) return Status::kNotSpd;
+  Matrix6d information = eq.JtJ * meat_solved / sigma2;
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
-  const Eigen::LDLT<Matrix6d> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
-  if (!covariance.allFinite()) return Status::kNotSpd;
+  // Only the tilt block of the inverse: the columns of the two tilt parameters.
+  Matrix6d covariance = Matrix6d::Zero();
+  if (!solve_spd(information, Matrix6d::Identity(), 2, 2, &covariance)) return Status::kNotSpd;
+  if (!covariance.block<kParams, 2>(0, 2).allFinite()) return Status::kNotSpd;
   *tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
   return Status::kOk;
 }
