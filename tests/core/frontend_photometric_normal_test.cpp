@@ -49,6 +49,23 @@ struct TwoViews {
   }
 };
 
+// The query for the plane point seen at reference pixel (sx, sy) and its patch, with the front end's
+// fallback prior: facing the creating camera (off the true normal by the ray's angle), variance 1/4.
+PhotometricNormalQuery facing_query(const TwoViews& scene, const GrayImageView& reference_image, int sx, int sy,
+                                    std::array<std::uint8_t, kPatchPixels>* patch) {
+  Eigen::Vector3d X;
+  REQUIRE(scene.plane.intersect(Eigen::Vector2d(sx, sy), scene.reference, scene.k, &X));
+  PhotometricNormalQuery query;
+  query.X_world = X;
+  query.normal_world = (scene.reference.position_world - X).normalized().cast<float>();
+  query.prior_tilt_variance = 0.25;
+  query.reference = scene.reference;
+  query.target = scene.target;
+  REQUIRE(ok(project(X, scene.target, scene.k, &query.uv_target_px)));
+  extract_patch(reference_image, sx, sy, patch);
+  return query;
+}
+
 // The angle (rad) between the estimate and the plane's normal, and its normalized squared tilt error.
 struct Error {
   double angle = 0.0;
@@ -71,18 +88,8 @@ TEST_CASE("the photometric normal recovers a plane's normal from a facing-camera
     const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
     for (int sy = 30; sy <= 90; sy += 10) {
       for (int sx = 40; sx <= 120; sx += 10) {
-        Eigen::Vector3d X;
-        REQUIRE(scene.plane.intersect(Eigen::Vector2d(sx, sy), scene.reference, scene.k, &X));
-        PhotometricNormalQuery query;
-        query.X_world = X;
-        // The front end's fallback: facing the creating camera (off the true normal by the ray's angle).
-        query.normal_world = (scene.reference.position_world - X).normalized().cast<float>();
-        query.prior_tilt_variance = 0.25;
-        query.reference = scene.reference;
-        query.target = scene.target;
-        REQUIRE(ok(project(X, scene.target, scene.k, &query.uv_target_px)));
         std::array<std::uint8_t, kPatchPixels> patch;
-        extract_patch(reference_image, sx, sy, &patch);
+        const PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
         ++tried;
         PhotometricNormalEstimate estimate;
         if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &estimate))) continue;
@@ -337,16 +344,8 @@ TEST_CASE("the photometric normal's builds give the same estimate") {
   int compared = 0;
   for (int sy = 30; sy <= 90; sy += 15) {
     for (int sx = 40; sx <= 120; sx += 20) {
-      Eigen::Vector3d X;
-      REQUIRE(scene.plane.intersect(Eigen::Vector2d(sx, sy), scene.reference, scene.k, &X));
-      PhotometricNormalQuery query;
-      query.X_world = X;
-      query.normal_world = (scene.reference.position_world - X).normalized().cast<float>();
-      query.reference = scene.reference;
-      query.target = scene.target;
-      REQUIRE(ok(project(X, scene.target, scene.k, &query.uv_target_px)));
       std::array<std::uint8_t, kPatchPixels> patch;
-      extract_patch(reference_image, sx, sy, &patch);
+      PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
       PhotometricNormalEstimate estimates[2];
       Status status[2];
       for (int b = 0; b < 2; ++b) {
