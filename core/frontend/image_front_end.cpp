@@ -427,7 +427,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       seen.creating_view = creating;
     }
     const Status updated =
-        iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations, &stats_.ekf);
+        iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
+                                 ProjectionAtPrior{predicted, H}, &stats_.ekf);
     if (observer_ != nullptr) {
       seen.outcome = updated;
       observer_->on_observation(seen);

@@ -46,6 +46,21 @@ bool spd3(const Eigen::Matrix3d& M) {
   return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
 }
 
+// v^T Sigma^-1 v for a symmetric positive definite 3x3 (spd3 holds): the adjugate's quadratic form over
+// the determinant, without forming the inverse.
+double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& v) {
+  const double c00 = Sigma(1, 1) * Sigma(2, 2) - Sigma(1, 2) * Sigma(1, 2);
+  const double c01 = Sigma(0, 2) * Sigma(1, 2) - Sigma(0, 1) * Sigma(2, 2);
+  const double c02 = Sigma(0, 1) * Sigma(1, 2) - Sigma(0, 2) * Sigma(1, 1);
+  const double c11 = Sigma(0, 0) * Sigma(2, 2) - Sigma(0, 2) * Sigma(0, 2);
+  const double c12 = Sigma(0, 1) * Sigma(0, 2) - Sigma(0, 0) * Sigma(1, 2);
+  const double c22 = Sigma(0, 0) * Sigma(1, 1) - Sigma(0, 1) * Sigma(0, 1);
+  const double det = Sigma(0, 0) * c00 + Sigma(0, 1) * c01 + Sigma(0, 2) * c02;
+  const double quadratic = c00 * v.x() * v.x() + c11 * v.y() * v.y() + c22 * v.z() * v.z() +
+                           2.0 * (c01 * v.x() * v.y() + c02 * v.x() * v.z() + c12 * v.y() * v.z());
+  return quadratic / det;
+}
+
 // Joseph-form covariance for gain K at H, valid for any K (consider form, see the header).
 [[gnu::noinline]] Eigen::Matrix3d joseph_covariance(const Eigen::Matrix<double, 3, 2>& K,
                                                    const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
@@ -65,23 +80,15 @@ bool spd3(const Eigen::Matrix3d& M) {
   return kept + K * (common.B * common.covariance_px2);
 }
 
-}  // namespace
-
-Status iterated_ekf_update(Primitive& primitive, const Eigen::Vector2d& observation_px, const Viewpoint& view,
-                           const PinholeIntrinsics& intrinsics, const EkfConfig& config, int max_iterations,
-                           EkfStats* stats) {
-  CommonObservationError none;
-  return iterated_consider_update(primitive, &none, observation_px, view, intrinsics, config, max_iterations, stats);
-}
-
-Status iterated_consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
-                                const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
-                                int max_iterations, EkfStats* stats) {
+Status consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
+                       const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
+                       int max_iterations, const ProjectionAtPrior* at_prior, EkfStats* stats) {
   EkfStats ignored;
   EkfStats& counts = stats != nullptr ? *stats : ignored;
   if (!observation_px.allFinite() || !view.position_world.allFinite() || !view.R_world_cam.allFinite() ||
       !primitive.X_world.allFinite() || !config.R_px2.allFinite() || !common->covariance_px2.allFinite() ||
-      !common->cross_covariance.allFinite() || !common->B.allFinite()) {
+      !common->cross_covariance.allFinite() || !common->B.allFinite() ||
+      (at_prior != nullptr && (!at_prior->predicted_px.allFinite() || !at_prior->H.allFinite()))) {
     ++counts.rejected_inputs;
     return Status::kNonFiniteInput;
   }
@@ -100,15 +107,16 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
   // linearization at the estimate.
   constexpr double kStepSigmas = 1e-3;
   const int iterations = max_iterations < 1 ? 1 : max_iterations;
-  Eigen::Matrix3d Sigma_inv;  // for the step's length; only when there is a second step to measure
-  bool have_Sigma_inv = false;
   Eigen::Vector3d X = X0;
   Eigen::Vector2d predicted;
   Eigen::Matrix<double, 2, 3> H;
   Eigen::Matrix2d S_inv;
   Eigen::Matrix<double, 3, 2> K;
   for (int iteration = 0;; ++iteration) {
-    if (!ok(project_with_jacobian(X, view, intrinsics, &predicted, &H))) {
+    if (iteration == 0 && at_prior != nullptr) {
+      predicted = at_prior->predicted_px;
+      H = at_prior->H;
+    } else if (!ok(project_with_jacobian(X, view, intrinsics, &predicted, &H))) {
       ++counts.rejected_inputs;
       return Status::kBehindCamera;
     }
@@ -128,11 +136,7 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
     X += step;
     // The first step is the EKF's own; the later ones are the relinearization's corrections.
     if (iteration == 0) continue;
-    if (!have_Sigma_inv) {
-      Sigma_inv = Sigma.inverse();
-      have_Sigma_inv = true;
-    }
-    if (step.dot(Sigma_inv * step) <= kStepSigmas * kStepSigmas) break;
+    if (mahalanobis_squared(Sigma, step) <= kStepSigmas * kStepSigmas) break;
   }
   // H and K are those at the last linearization point.
   const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
@@ -148,6 +152,27 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
   ++primitive.observation_count;
   ++counts.accepted;
   return Status::kOk;
+}
+
+}  // namespace
+
+Status iterated_ekf_update(Primitive& primitive, const Eigen::Vector2d& observation_px, const Viewpoint& view,
+                           const PinholeIntrinsics& intrinsics, const EkfConfig& config, int max_iterations,
+                           EkfStats* stats) {
+  CommonObservationError none;
+  return iterated_consider_update(primitive, &none, observation_px, view, intrinsics, config, max_iterations, stats);
+}
+
+Status iterated_consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
+                                const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
+                                int max_iterations, EkfStats* stats) {
+  return consider_update(primitive, common, observation_px, view, intrinsics, config, max_iterations, nullptr, stats);
+}
+
+Status iterated_consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
+                                const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
+                                int max_iterations, const ProjectionAtPrior& at_prior, EkfStats* stats) {
+  return consider_update(primitive, common, observation_px, view, intrinsics, config, max_iterations, &at_prior, stats);
 }
 
 }  // namespace vantage

@@ -44,4 +44,16 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
                                 const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
                                 int max_iterations, EkfStats* stats);
 
+// project_with_jacobian of the primitive's X_world in the view, when the caller has it already (the
+// tracker's prediction): the first linearization then costs no projection.
+struct ProjectionAtPrior {
+  Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+  Eigen::Matrix<double, 2, 3> H = Eigen::Matrix<double, 2, 3>::Zero();
+};
+
+// The same update, linearized first at `at_prior` (which must be X_world's projection in `view`).
+Status iterated_consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
+                                const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
+                                int max_iterations, const ProjectionAtPrior& at_prior, EkfStats* stats);
+
 }  // namespace vantage

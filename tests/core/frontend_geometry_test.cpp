@@ -285,3 +285,48 @@ TEST_CASE("the consider update stays consistent under an error common to all obs
   CHECK(nees_consider < 3.15);
   CHECK(nees_plain > 3.5);  // averaging the common error away is over-confident
 }
+
+TEST_CASE("the consider update from the caller's projection at the prior equals the one that projects itself") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Viewpoint view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
+  std::mt19937 rng(17);
+  std::normal_distribution<double> z(0.0, 1.0);
+  EkfConfig config;
+  config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
+  int accepted = 0;
+  for (int trial = 0; trial < 50; ++trial) {
+    Primitive own;
+    own.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
+    own.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
+    Primitive given = own;
+    CommonObservationError common_own;
+    common_own.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+    common_own.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
+    common_own.B << 1.1, 0.1, -0.05, 0.9;
+    CommonObservationError common_given = common_own;
+    ProjectionAtPrior at_prior;
+    REQUIRE(ok(project_with_jacobian(own.X_world, view, k, &at_prior.predicted_px, &at_prior.H)));
+    const Eigen::Vector2d o = at_prior.predicted_px + Eigen::Vector2d(2.0 * z(rng), 2.0 * z(rng));
+    EkfStats stats_own;
+    EkfStats stats_given;
+    const Status a = iterated_consider_update(own, &common_own, o, view, k, config, 3, &stats_own);
+    Status b = Status::kOk;
+    REQUIRE_NO_ALLOCATION(b = iterated_consider_update(given, &common_given, o, view, k, config, 3, at_prior, &stats_given));
+    REQUIRE(a == b);
+    CHECK(stats_own.gated_outliers == stats_given.gated_outliers);
+    if (!ok(a)) continue;
+    ++accepted;
+    CHECK(own.X_world == given.X_world);
+    CHECK(own.Sigma_world == given.Sigma_world);
+    CHECK(common_own.cross_covariance == common_given.cross_covariance);
+  }
+  CHECK(accepted > 25);
+  // A non-finite projection is an input error.
+  Primitive p;
+  p.Sigma_world = Eigen::Matrix3d::Identity();
+  CommonObservationError common;
+  ProjectionAtPrior bad;
+  bad.H(0, 0) = std::nan("");
+  CHECK(iterated_consider_update(p, &common, Eigen::Vector2d::Zero(), view, k, config, 3, bad, nullptr) ==
+        Status::kNonFiniteInput);
+}
