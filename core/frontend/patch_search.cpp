@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 
 #include "core/geometry/projection.hpp"
@@ -9,6 +10,15 @@
 namespace vantage {
 
 namespace {
+
+// Two double lanes (GCC/Clang vector extensions: SSE2 on x86-64, NEON on aarch64).
+using Double2 = double __attribute__((vector_size(16)));
+using Long2 = std::int64_t __attribute__((vector_size(16)));
+using Int4 = std::int32_t __attribute__((vector_size(16)));
+Double2 splat2(double value) { return Double2{value, value}; }
+
+// Local maxima the window search keeps for its uniqueness test; more take a second scan.
+constexpr std::int32_t kWindowSearchMaxPeaks = 16;
 
 // refine_subpixel's stop: a step shorter than this (the searches take MatchConfig::subpixel_stop_step_px).
 constexpr double kRefineStopStepPx = 1e-3;
@@ -98,16 +108,33 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   std::int32_t in_x1 = x0;
   std::int32_t in_y0 = y1;
   std::int32_t in_y1 = y0;
-  // The gate test first, a plain arithmetic loop the compiler vectorizes, then the rectangle.
-  const double px = query.predicted_px.x();
+  // The gate test first, four pixels at a time (each lane the scalar form's operations in its order, so
+  // the same bits; the rows are short, and a compiler-vectorized loop spent most of its time in its
+  // prologue and epilogue), then the rectangle. A row's last group may write up to three flags past its
+  // last candidate: into its ring column x1 and the next row's first two, which that row (or, after the
+  // last candidate row, the ring row y1) writes or nobody reads.
+  const Double2 px2 = splat2(query.predicted_px.x());
+  const Double2 a2 = splat2(a);
+  const Double2 c2 = splat2(c);
+  const Double2 gate2 = splat2(query.gate_chi2);
+  const Int4 one_bits = Int4{0x3f800000, 0x3f800000, 0x3f800000, 0x3f800000};  // 1.0f
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
     const double dy = y - query.predicted_px.y();
-    const double b_dy = b * dy;
-    const double e_dy = e * dy;
-    float* row = inside + (y - y0) * w;
-    for (std::int32_t x = x0 + 1; x < x1; ++x) {
-      const double dx = static_cast<double>(x) - px;
-      row[x - x0] = dx * (a * dx + b_dy) + dy * (c * dx + e_dy) <= query.gate_chi2 ? 1.0f : 0.0f;
+    const Double2 dy2 = splat2(dy);
+    const Double2 b_dy2 = splat2(b * dy);
+    const Double2 e_dy2 = splat2(e * dy);
+    float* row = inside + (y - y0) * w - x0;  // row[x]
+    Double2 xa = Double2{static_cast<double>(x0 + 1), static_cast<double>(x0 + 2)};
+    for (std::int32_t x = x0 + 1; x < x1; x += 4) {
+      const Double2 dxa = xa - px2;
+      const Double2 dxb = (xa + splat2(2.0)) - px2;
+      const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
+      const Long2 inb = dxb * (a2 * dxb + b_dy2) + dy2 * (c2 * dxb + e_dy2) <= gate2;
+      // Each 64-bit mask lane is all ones or zeros: its low halves, as 1.0f or 0.0f.
+      const Int4 flags = __builtin_shufflevector(reinterpret_cast<Int4>(ina), reinterpret_cast<Int4>(inb), 0, 2, 4, 6) &
+                         one_bits;
+      std::memcpy(row + x, &flags, sizeof flags);
+      xa += splat2(4.0);
     }
   }
   if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[(cy - y0) * w + cx - x0] = 1.0f;
@@ -157,27 +184,70 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     return !(centre[s] > v || centre[1] > v || centre[s + 1] > v || centre[s - 1] > v || centre[-1] > v ||
              centre[-s] > v || centre[-s + 1] > v || centre[-s - 1] > v);
   };
-  // Best local maximum inside the gate ellipse.
+  // One pass for the best local maximum inside the gate ellipse and the other local maxima that could make
+  // it ambiguous. Once the best reaches ncc_min, only values >= low can be either: the uniqueness bound
+  // ratio * best (rounded) never falls below ratio * ncc_min (rounded the same way), so low is the
+  // smaller of that and ncc_min. A search whose best stays below ncc_min (no match) scans again for it,
+  // as *best_ncc reports it; one with more peaks than the list holds checks uniqueness by a second scan.
+  const float ratio = config.uniqueness_ratio;
+  const float ratio_min = ratio * config.ncc_min;
+  float low = ratio_min < config.ncc_min ? ratio_min : config.ncc_min;
+  if (!(ratio >= 0.0f) || !(low >= -2.0f)) low = -2.0f;  // a negative ratio or NaN: every value counts
+  struct Peak {
+    std::int32_t x;
+    std::int32_t y;
+    float value;
+  };
+  Peak peaks[kWindowSearchMaxPeaks];
+  std::int32_t peak_count = 0;
+  bool peaks_overflow = false;
   float best = -2.0f;
   std::int32_t bx = 0;
   std::int32_t by = 0;
   for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+    const float* ncc_row = ncc + (y - n_y0) * n_stride - n_x0;  // ncc_row[x]
+    const float* inside_row = inside + (y - y0) * w - x0;      // inside_row[x]
     for (std::int32_t x = in_x0; x <= in_x1; ++x) {
-      if (!is_inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
-      best = value(x, y);
-      bx = x;
-      by = y;
+      const float v = ncc_row[x];
+      if (!(v >= low) || inside_row[x] == 0.0f || !is_local_max(x, y)) continue;
+      if (peak_count < kWindowSearchMaxPeaks) {
+        peaks[peak_count++] = Peak{x, y, v};
+      } else {
+        peaks_overflow = true;
+      }
+      if (v > best) {
+        best = v;
+        bx = x;
+        by = y;
+      }
+    }
+  }
+  if (peak_count == 0) {
+    for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+      for (std::int32_t x = in_x0; x <= in_x1; ++x) {
+        if (!is_inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
+        best = value(x, y);
+        bx = x;
+        by = y;
+      }
     }
   }
   *best_ncc = best;
   if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
   // Uniqueness over the other local maxima inside the ellipse: the region the prior allows.
-  for (std::int32_t y = in_y0; y <= in_y1; ++y) {
-    for (std::int32_t x = in_x0; x <= in_x1; ++x) {
-      if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
-      if (is_inside(x, y) && value(x, y) >= config.uniqueness_ratio * best && is_local_max(x, y)) {
-        return MatchOutcome::kAmbiguous;
+  const float unique_below = config.uniqueness_ratio * best;
+  if (peaks_overflow) {
+    for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+      for (std::int32_t x = in_x0; x <= in_x1; ++x) {
+        if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
+        if (is_inside(x, y) && value(x, y) >= unique_below && is_local_max(x, y)) return MatchOutcome::kAmbiguous;
       }
+    }
+  } else {
+    for (std::int32_t k = 0; k < peak_count; ++k) {
+      const Peak& peak = peaks[k];
+      if (std::abs(peak.x - bx) <= 1 && std::abs(peak.y - by) <= 1) continue;
+      if (peak.value >= unique_below) return MatchOutcome::kAmbiguous;
     }
   }
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));

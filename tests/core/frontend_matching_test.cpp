@@ -555,6 +555,8 @@ TEST_CASE("the window search agrees with the plain per-pixel search: gate, peak,
   config.subpixel_stop_step_px = 1e-3;  // refine_subpixel's stop, which the plain search calls
   int compared = 0;
   int matched = 0;
+  int below = 0;
+  int ambiguous = 0;
   for (int trial = 0; trial < 400; ++trial) {
     // Prediction anywhere (image borders included), ellipses from tiny to wide, tilted, half sizes 1-6.
     const std::int32_t x = 4 + static_cast<std::int32_t>(noise.uniform() * (w - 8));
@@ -574,23 +576,37 @@ TEST_CASE("the window search agrees with the plain per-pixel search: gate, peak,
     query.S_inv = S.inverse();
     query.half_width_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sx)), 1, 6);
     query.half_height_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sy)), 1, 6);
-    Eigen::Vector2d fast(0, 0);
-    Eigen::Vector2d plain(0, 0);
-    float fast_best = 0.0f;
-    float plain_best = 0.0f;
-    const MatchOutcome fast_outcome =
-        search_window(moved_view, tmpl, query, config, Span<float>(scratch.data(), scratch.size()), &fast, &fast_best);
-    if (fast_outcome == MatchOutcome::kNoRoom) continue;
-    const MatchOutcome plain_outcome = reference_window_search(moved_view, tmpl, query, config, &plain, &plain_best);
-    INFO("trial " << trial << " at " << query.predicted_px.transpose());
-    ++compared;
-    CHECK(fast_outcome == plain_outcome);
-    CHECK(fast_best == Approx(plain_best).margin(1e-5));
-    if (fast_outcome == MatchOutcome::kMatched && plain_outcome == MatchOutcome::kMatched) {
-      ++matched;
-      CHECK((fast - plain).norm() < 1e-4);
+    // The default thresholds, then ones that make the search's fallbacks run: a best below ncc_min
+    // (scanned again for *best_ncc) and more local maxima than its list holds (uniqueness by a scan).
+    for (int variant = 0; variant < 3; ++variant) {
+      MatchConfig tried = config;
+      if (variant == 1) tried.ncc_min = 0.995f;
+      if (variant == 2) {
+        tried.ncc_min = -1.0f;
+        tried.uniqueness_ratio = 0.0f;
+      }
+      Eigen::Vector2d fast(0, 0);
+      Eigen::Vector2d plain(0, 0);
+      float fast_best = 0.0f;
+      float plain_best = 0.0f;
+      const MatchOutcome fast_outcome = search_window(moved_view, tmpl, query, tried,
+                                                      Span<float>(scratch.data(), scratch.size()), &fast, &fast_best);
+      if (fast_outcome == MatchOutcome::kNoRoom) continue;
+      const MatchOutcome plain_outcome = reference_window_search(moved_view, tmpl, query, tried, &plain, &plain_best);
+      INFO("trial " << trial << " variant " << variant << " at " << query.predicted_px.transpose());
+      ++compared;
+      CHECK(fast_outcome == plain_outcome);
+      CHECK(fast_best == Approx(plain_best).margin(1e-5));
+      if (variant == 1 && fast_outcome == MatchOutcome::kBelowThreshold) ++below;
+      if (variant == 2 && fast_outcome == MatchOutcome::kAmbiguous) ++ambiguous;
+      if (fast_outcome == MatchOutcome::kMatched && plain_outcome == MatchOutcome::kMatched) {
+        ++matched;
+        CHECK((fast - plain).norm() < 1e-4);
+      }
     }
   }
+  CHECK(below > 50);
+  CHECK(ambiguous > 10);
   CHECK(compared > 300);
   CHECK(matched > 50);
 }
