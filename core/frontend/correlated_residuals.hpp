@@ -31,14 +31,6 @@ inline BilinearCell bilinear_cell(double x, double y) {
   return BilinearCell{static_cast<std::int32_t>(fx0), static_cast<std::int32_t>(fy0), x - fx0, y - fy0};
 }
 
-// Bilinear interpolation of the image at (x, y); the caller keeps (x, y) inside [0, w - 1) x [0, h - 1).
-inline double sample_bilinear(const GrayImageView& image, double x, double y) {
-  const BilinearCell c = bilinear_cell(x, y);
-  const double top = (1.0 - c.fx) * image.at(c.x0, c.y0) + c.fx * image.at(c.x0 + 1, c.y0);
-  const double bottom = (1.0 - c.fx) * image.at(c.x0, c.y0 + 1) + c.fx * image.at(c.x0 + 1, c.y0 + 1);
-  return (1.0 - c.fy) * top + c.fy * bottom;
-}
-
 // Jacobian rows and residuals of a fit over the p x p patch (row-major); valid[i] false for pixels not
 // in the fit (their rows and residuals are ignored).
 template <int P>

@@ -11,6 +11,7 @@
 namespace vantage {
 
 using Float4 = float __attribute__((vector_size(16)));
+using Int4 = std::int32_t __attribute__((vector_size(16)));  // comparison results and pixel offsets
 
 inline Float4 splat4(float value) { return Float4{value, value, value, value}; }
 

@@ -70,9 +70,7 @@ Eigen::Matrix2d spawn_warp_covariance(const NccTemplate& tmpl, const Eigen::Vect
       !ok(plane_affine_from_jacobians(H_reference, H_other, facing, &A, &dA))) {
     return Eigen::Matrix2d::Zero();
   }
-  TemplateGradientMoments moments;
-  template_gradient_moments(tmpl, &moments);
-  const Eigen::Matrix2d covariance = warp_shift_covariance(moments, A, dA, facing_tilt_variance);
+  const Eigen::Matrix2d covariance = warp_shift_covariance(tmpl, A, dA, facing_tilt_variance);
   return covariance.allFinite() ? covariance : Eigen::Matrix2d::Zero();
 }
 
@@ -362,9 +360,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
     if (config_.model_normal_uncertainty && have_creating) {
-      TemplateGradientMoments moments;
-      template_gradient_moments(tmpl, &moments);
-      warp_covariance = warp_shift_covariance(moments, A, dA, normal_tilt_variance(i));
+      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
     }
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;

@@ -23,10 +23,11 @@ bool correlated_match_covariance(const GrayImageView& image, const NccTemplate& 
   if (!(left >= 0.0 && top >= 0.0 && left + kRing < image.width_px - 1.0 && top + kRing < image.height_px - 1.0)) {
     return false;
   }
-  const auto x0 = static_cast<std::int32_t>(std::floor(left));
-  const auto y0 = static_cast<std::int32_t>(std::floor(top));
-  const double fx = left - x0;
-  const double fy = top - y0;
+  const BilinearCell cell = bilinear_cell(left, top);
+  const std::int32_t x0 = cell.x0;
+  const std::int32_t y0 = cell.y0;
+  const double fx = cell.fx;
+  const double fy = cell.fy;
   const double w00 = (1.0 - fx) * (1.0 - fy);
   const double w01 = fx * (1.0 - fy);
   const double w10 = (1.0 - fx) * fy;

@@ -20,6 +20,30 @@ float ncc_from_sums(float sum_ti, float sum_i, float sum_ii, float n, float tmpl
   return ncc > 1.0f ? 1.0f : (ncc < -1.0f ? -1.0f : ncc);
 }
 
+// Centres the pixels gray on mean into out->values (times the mask when kMasked; masks are 0 or 1, so
+// without it the same arithmetic minus the products with 1) and sets the norm and the standard deviation
+// over count pixels. gray may be out->values itself.
+template <bool kMasked>
+void centre_template(const float* gray, const float* mask, float mean, float count, NccTemplate* out) {
+  constexpr int kWhole = kPatchPixels / 4 * 4;
+  float* centred = out->values.data();
+  const Float4 mean4 = splat4(mean);
+  Float4 sum_sq4 = splat4(0.0f);
+  for (int i = 0; i < kWhole; i += 4) {
+    Float4 c = load4(gray + i) - mean4;
+    if constexpr (kMasked) c *= load4(mask + i);
+    store4(centred + i, c);
+    sum_sq4 += c * c;
+  }
+  float sum_sq = sum_lanes(sum_sq4);
+  for (int i = kWhole; i < kPatchPixels; ++i) {
+    centred[i] = kMasked ? (gray[i] - mean) * mask[i] : gray[i] - mean;
+    sum_sq += centred[i] * centred[i];
+  }
+  out->norm = std::sqrt(sum_sq);
+  out->stddev_gray = std::sqrt(sum_sq / count);
+}
+
 void finish_template(NccTemplate* out) {
   // Masks are 0 or 1 (both make_template overloads set them so): plain sums, no branches. The sums run
   // in four lanes (float sums are not vectorized otherwise; each tracked primitive makes a template).
@@ -46,22 +70,7 @@ void finish_template(NccTemplate* out) {
     out->stddev_gray = 0.0f;
     return;
   }
-  const float mean = sum / count;
-  float* centred = out->values.data();
-  const Float4 mean4 = splat4(mean);
-  Float4 sum_sq4 = splat4(0.0f);
-  for (int i = 0; i < kWhole; i += 4) {
-    const Float4 c = (load4(centred + i) - mean4) * load4(mask + i);
-    store4(centred + i, c);
-    sum_sq4 += c * c;
-  }
-  float sum_sq = sum_lanes(sum_sq4);
-  for (int i = kWhole; i < kPatchPixels; ++i) {
-    centred[i] = (centred[i] - mean) * mask[i];
-    sum_sq += centred[i] * centred[i];
-  }
-  out->norm = std::sqrt(sum_sq);
-  out->stddev_gray = std::sqrt(sum_sq / count);
+  centre_template<true>(values, mask, sum / count, count, out);
 }
 
 }  // namespace
@@ -77,24 +86,10 @@ void make_template(const std::array<std::uint8_t, kPatchPixels>& patch, NccTempl
   for (int i = 0; i < kWhole; i += 4) sum4 += load4(gray + i);
   float sum = sum_lanes(sum4);
   for (int i = kWhole; i < kPatchPixels; ++i) sum += gray[i];
-  const float mean = sum / static_cast<float>(kPatchPixels);
-  float* centred = out->values.data();
-  const Float4 mean4 = splat4(mean);
-  Float4 sum_sq4 = splat4(0.0f);
-  for (int i = 0; i < kWhole; i += 4) {
-    const Float4 c = load4(gray + i) - mean4;
-    store4(centred + i, c);
-    sum_sq4 += c * c;
-  }
-  float sum_sq = sum_lanes(sum_sq4);
-  for (int i = kWhole; i < kPatchPixels; ++i) {
-    centred[i] = gray[i] - mean;
-    sum_sq += centred[i] * centred[i];
-  }
+  const float count = static_cast<float>(kPatchPixels);
+  centre_template<false>(gray, nullptr, sum / count, count, out);
   out->mask.fill(1.0f);
   out->valid_count = kPatchPixels;
-  out->norm = std::sqrt(sum_sq);
-  out->stddev_gray = std::sqrt(sum_sq / static_cast<float>(kPatchPixels));
 }
 
 void make_template(const std::array<float, kPatchPixels>& gray, const std::array<float, kPatchPixels>& mask,

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 
+#include "core/frontend/float4.hpp"
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
@@ -14,7 +15,6 @@ namespace {
 // Two double lanes (GCC/Clang vector extensions: SSE2 on x86-64, NEON on aarch64).
 using Double2 = double __attribute__((vector_size(16)));
 using Long2 = std::int64_t __attribute__((vector_size(16)));
-using Int4 = std::int32_t __attribute__((vector_size(16)));
 Double2 splat2(double value) { return Double2{value, value}; }
 
 // Local maxima the window search keeps for its uniqueness test; more take a second scan.

@@ -9,6 +9,14 @@
 
 namespace vantage {
 
+Eigen::Matrix<double, 3, 2> plane_basis(const Eigen::Vector3d& n) {
+  const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  Eigen::Matrix<double, 3, 2> basis;
+  basis.col(0) = n.cross(helper).normalized();
+  basis.col(1) = n.cross(basis.col(0));
+  return basis;
+}
+
 Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, const Eigen::Matrix<double, 2, 3>& H_target,
                                    const Eigen::Vector3f& normal_world, Eigen::Matrix2d* A_ref_per_target,
                                    std::array<Eigen::Matrix2d, 2>* dA) {
@@ -16,13 +24,7 @@ Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, con
   const double length = n_raw.norm();
   if (!std::isfinite(length) || std::abs(length - 1.0) > 1e-3) return Status::kInvalidArgument;
   const Eigen::Vector3d n = n_raw / length;
-  // Any orthonormal basis of the plane.
-  const Eigen::Vector3d helper = std::abs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d e1 = n.cross(helper).normalized();
-  const Eigen::Vector3d e2 = n.cross(e1);
-  Eigen::Matrix<double, 3, 2> basis;
-  basis.col(0) = e1;
-  basis.col(1) = e2;
+  const Eigen::Matrix<double, 3, 2> basis = plane_basis(n);
   const Eigen::Matrix2d J_ref = H_ref * basis;        // pixels in the reference per unit on the plane
   const Eigen::Matrix2d J_target = H_target * basis;  // pixels in the target per unit on the plane
   const double det = J_target.determinant();
@@ -68,7 +70,6 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
                          NccTemplate* out) {
   static_assert(kPatchSize == 7, "two four-lane groups per template row");
-  using Int4 = std::int32_t __attribute__((vector_size(16)));
   // Float, four target pixels at a time: the values are gray levels, the offsets a few pixels.
   alignas(16) float source[64];
   bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, source, 64);

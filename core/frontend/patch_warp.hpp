@@ -26,6 +26,10 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A_ref_per_target,
                          NccTemplate* out);
 
+// An orthonormal basis [e1 e2] of the plane with unit normal n: the tilt axes of dA below and of the
+// photometric normal's estimate.
+Eigen::Matrix<double, 3, 2> plane_basis(const Eigen::Vector3d& n);
+
 // plane_affine and its tilt derivatives from the two views' projection Jacobians at X (as
 // project_with_jacobian gives them; the tracker has the target's from its prediction already):
 // A = J_ref J_target^-1 with J = H E for a basis E = [e1 e2] of the plane (A does not depend on which).

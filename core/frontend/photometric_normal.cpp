@@ -65,10 +65,10 @@ Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
   return out;
 }
 
-// sample_bilinear at (x, y) and the central differences of its samples one pixel away on each axis,
+// The bilinear sample at (x, y) and the central differences of its samples one pixel away on each axis,
 // from one 4x4 neighbourhood: the five samples share their fractional parts, so the eight row blends
-// serve them all (12 pixel reads instead of 20). The same arithmetic as five sample_bilinear calls (to
-// the last bit while x +- 1 and y +- 1 keep x's and y's binary exponent). The caller keeps x, y in
+// serve them all (12 pixel reads instead of 20). The same arithmetic as interpolating each of the five
+// on its own (to the last bit while x +- 1 and y +- 1 keep x's and y's binary exponent). The caller keeps x, y in
 // [1, size - 2).
 void sample_with_gradient(const GrayImageView& image, double x, double y, double* value, Eigen::Vector2d* g) {
   const BilinearCell cell = bilinear_cell(x, y);
@@ -154,6 +154,12 @@ struct NormalEquations {
   return Status::kOk;
 }
 
+// The residual variance per pixel (the 8-bit floor below dof > 0 residuals' own).
+double residual_variance(const NormalEquations& eq) {
+  const double dof = eq.count - kParams;
+  return dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+}
+
 // The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
 [[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
   const Eigen::LDLT<Matrix6d> ldlt(information);
@@ -170,8 +176,7 @@ struct NormalEquations {
 // share one stack frame with the iteration's, beyond the core's frame limit under ASan.
 [[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, double prior_information,
                                             Eigen::Matrix2d* tilt_covariance) {
-  const double dof = eq.count - kParams;
-  const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+  const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
   lag_one_correlations(eq.rows, &rho_x, &rho_y);
@@ -202,10 +207,10 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     return Status::kInvalidArgument;
   }
   if (!ok(image.validate())) return Status::kInvalidImage;
-  // The tilt axes: any orthonormal basis of the prior normal's plane.
-  const Eigen::Vector3d helper = std::abs(n0.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d e1 = n0.cross(helper).normalized();
-  const Eigen::Vector3d e2 = n0.cross(e1);
+  // The tilt axes: an orthonormal basis of the prior normal's plane.
+  const Eigen::Matrix<double, 3, 2> basis = plane_basis(n0);
+  const Eigen::Vector3d e1 = basis.col(0);
+  const Eigen::Vector3d e2 = basis.col(1);
   const double prior_information = 1.0 / query.prior_tilt_variance;
   Vector6d theta;
   theta << query.uv_target_px, 0.0, 0.0, 1.0, 0.0;
@@ -216,8 +221,7 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   for (int iteration = 0; iteration <= query.iterations; ++iteration) {
     const Status status = accumulate(image, patch, query, views, e1, e2, theta, &eq);
     if (!ok(status)) return status;
-    const double dof = eq.count - kParams;
-    const double sigma2 = dof > 0 ? std::fmax(eq.sum_r2 / dof, kMinResidualVariance) : kMinResidualVariance;
+    const double sigma2 = residual_variance(eq);
     // MAP: pixels weighted by the residual variance, the prior on the tilt.
     information = eq.JtJ / sigma2;
     information(2, 2) += prior_information;
