@@ -9,6 +9,17 @@ namespace vantage::sim {
 
 namespace {
 constexpr double kChi2Dof2Q95 = 5.991464547107979;
+
+// The angle between two unit vectors, in degrees.
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / M_PI;
+}
+}  // namespace
+
+Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv_px, double stride_px) {
+  const double half = std::floor(stride_px / 2.0);
+  return Eigen::Vector2d(std::round((uv_px.x() - half) / stride_px) * stride_px + half,
+                         std::round((uv_px.y() - half) / stride_px) * stride_px + half);
 }
 
 void GateDiagnostics::on_observation(const TrackedObservation& o) {
@@ -23,10 +34,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
     b.no_truth += 1;
     return;
   }
-  const double stride = stride_px_;
-  const double half = std::floor(stride / 2.0);
-  const Eigen::Vector2d seed(std::round((uv_creating.x() - half) / stride) * stride + half,
-                             std::round((uv_creating.y() - half) / stride) * stride + half);
+  const Eigen::Vector2d seed = nearest_seed_px(uv_creating, stride_px_);
   const Eigen::Vector3d ray = back_project_ray_world(seed, o.creating_view, k);
   const double t = scene_.first_hit(o.creating_view.position_world, ray);
   Eigen::Vector2d uv_true;
@@ -61,13 +69,14 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   const double match_chi2 = match_error.dot(R_total.inverse() * match_error);
   const Eigen::Vector3d from_creating = (o.creating_view.position_world - X_true).normalized();
   const Eigen::Vector3d from_view = (o.view.position_world - X_true).normalized();
+  const double view_change_deg = angle_deg(from_creating, from_view);
   b.prior_nees += prior_nees;
   b.prior_chi2 += prior_chi2;
   b.prior_chi2_tail += prior_chi2 > kChi2Dof2Q95 ? 1 : 0;
   b.match_chi2 += match_chi2;
   b.match_chi2_tail += match_chi2 > kChi2Dof2Q95 ? 1 : 0;
   b.error_px += match_error.norm();
-  b.angle_deg += std::acos(std::clamp(from_creating.dot(from_view), -1.0, 1.0)) * 180.0 / M_PI;
+  b.angle_deg += view_change_deg;
   b.young += p.observation_count < 3 ? 1 : 0;
   ByCount& c = by_count_[std::min<std::uint32_t>(5, p.observation_count / 4)];
   c.observations += 1;
@@ -76,7 +85,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   Viewpoint spawn_other;
   if (p.observation_count == 0 && p.creating_view > 0 && ok(front_end_.view_pose(p.creating_view - 1, &spawn_other))) {
     const Eigen::Vector3d from_other = (spawn_other.position_world - X_true).normalized();
-    const double baseline_deg = std::acos(std::clamp(from_creating.dot(from_other), -1.0, 1.0)) * 180.0 / M_PI;
+    const double baseline_deg = angle_deg(from_creating, from_other);
     ByCount& s = by_spawn_baseline_[std::min(5, static_cast<int>(baseline_deg / 2.0))];
     s.observations += 1;
     s.gated += gated ? 1 : 0;
@@ -90,7 +99,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   q.sum_sq += in_creating * in_creating.transpose();
   q.P_c += o.common_covariance_px2;
   q.R += A * o.R_px2 * A.transpose();
-  q.angle_deg += std::acos(std::clamp(from_creating.dot(from_view), -1.0, 1.0)) * 180.0 / M_PI;
+  q.angle_deg += view_change_deg;
 }
 
 void GateDiagnostics::print_bucket(std::FILE* out, const char* name, const Bucket& b) {

@@ -19,6 +19,11 @@
 
 namespace vantage::sim {
 
+// The seed pixel a primitive stands for: its projection uv_px into the creating view snapped to the
+// front end's seed lattice (cell centres floor(stride / 2) + k stride). Its surface point is the ground
+// truth of the front end's consistency figures (here and in tests/integration).
+Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv_px, double stride_px);
+
 class GateDiagnostics final : public TrackObserver {
  public:
   // front_end: for the pose of the image a new primitive was matched against (the one before its creating
@@ -53,8 +58,8 @@ class GateDiagnostics final : public TrackObserver {
   PinholeIntrinsics intrinsics_;
   std::int32_t stride_px_;
   Bucket gated_, accepted_;
-  ByCount by_count_[6];
-  ByCount by_spawn_baseline_[6];              // first re-observations, by spawn baseline angle / 2 deg                       // observation_count / 4, correct matches
+  ByCount by_count_[6];                       // correct matches, by observation_count / 4
+  ByCount by_spawn_baseline_[6];              // first re-observations, by spawn baseline angle / 2 deg
   std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
 };
 

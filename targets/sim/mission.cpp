@@ -12,13 +12,13 @@
 #include "core/frontend/image_front_end.hpp"
 #include "core/planning/precision_level.hpp"
 #include "core/planning/sensing_executive.hpp"
+#include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "sim_hal/kinematic_robot.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/sim_clock.hpp"
 #include "sim_hal/sim_error.hpp"
 #include "targets/common/search_depth_range.hpp"
-#include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "targets/sim/grid_driver.hpp"
 
 namespace vantage::simtarget {

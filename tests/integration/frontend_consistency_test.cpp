@@ -17,6 +17,7 @@
 #include "core/frontend/match_covariance.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/geometry/projection.hpp"
+#include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/world/sim_world.hpp"
@@ -198,9 +199,7 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
     // Seeds sit on the stride lattice and their own observation pins X's projection to them (a few
     // hundredths of a pixel unless later matches pulled it): snapping to the lattice recovers the seed
     // pixel while X projects within half a stride of it.
-    const double half = std::floor(stride / 2.0);
-    const Eigen::Vector2d seed(std::round((uv.x() - half) / stride) * stride + half,
-                               std::round((uv.y() - half) / stride) * stride + half);
+    const Eigen::Vector2d seed = vantage::sim::nearest_seed_px(uv, stride);
     CHECK(std::abs(uv.x() - seed.x()) < 0.5 * stride);
     CHECK(std::abs(uv.y() - seed.y()) < 0.5 * stride);
     Eigen::Vector3d truth;
