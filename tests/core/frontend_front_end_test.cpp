@@ -48,6 +48,12 @@ double pool_digest(const PrimitivePoolView& pool) {
   return digest;
 }
 
+// The views most cases use: the small-baseline pair the front end starts from (2 units apart at 40)
+// and a third view about 17 degrees away, with elevation.
+Viewpoint first_view() { return vantage::test::looking_at_origin({40.0, 0.0, 0.0}); }
+Viewpoint second_view() { return vantage::test::looking_at_origin({39.95, 2.0, 0.0}); }
+Viewpoint third_view() { return vantage::test::looking_at_origin({38.0, -6.0, 10.0}); }
+
 void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewpoint& second,
                          const FrontEndConfig& config = plane_config()) {
   g_pool.clear();
@@ -64,8 +70,8 @@ void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewp
 
 TEST_CASE("initialization triangulates a textured plane with a covariance elongated along depth") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   initialize_on_plane(scene, first, second);
   double sum_sq = 0.0;
   int count = 0;
@@ -92,15 +98,13 @@ TEST_CASE("initialization triangulates a textured plane with a covariance elonga
 
 TEST_CASE("tracking a third view matches most visible primitives and shrinks their uncertainty") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  initialize_on_plane(scene, first, second);
+  initialize_on_plane(scene, first_view(), second_view());
   double depth_sigma_before = 0.0;
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
     if (g_pool.is_alive(i)) depth_sigma_before += std::sqrt(g_pool[i].Sigma_world(0, 0));
   }
   depth_sigma_before /= static_cast<double>(g_pool.size());
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const Viewpoint third = third_view();
   const auto c = scene.render(third);
   const std::uint64_t revision = g_pool.revision();
   UpdateReport report;
@@ -126,8 +130,8 @@ TEST_CASE("tracking a third view matches most visible primitives and shrinks the
 
 TEST_CASE("a new primitive whose first re-observation fails is erased; a confirmed one only loses track") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   initialize_on_plane(scene, first, second);
   // Near the image centre (visible in the next view), give a few primitives a patch the image does not
   // show (a checkerboard): their match must fail. Half of them count as confirmed already.
@@ -161,8 +165,8 @@ TEST_CASE("a new primitive whose first re-observation fails is erased; a confirm
 
 TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one rejected K-1 times then matched is kept") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   FrontEndConfig config = plane_config();
   config.max_rejected_in_a_row = 3;
   const std::uint32_t k = config.max_rejected_in_a_row;
@@ -221,8 +225,8 @@ TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one r
 
 TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   initialize_on_plane(scene, first, second);
   // Forget the right part of the plane (y > 4): the next image shows it uncovered.
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
@@ -258,10 +262,8 @@ TEST_CASE("surface no primitive covers spawns primitives there, matched against 
 
 TEST_CASE("bad frames and poses are refused with a clear status and leave the model unchanged") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  initialize_on_plane(scene, first, second);
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  initialize_on_plane(scene, first_view(), second_view());
+  const Viewpoint third = third_view();
   const auto good = scene.render(third);
   const double digest = pool_digest(g_pool);
   const std::uint64_t revision = g_pool.revision();
@@ -322,7 +324,7 @@ TEST_CASE("update before initialize, and initialize from a bad pair, are refused
   Scene scene;
   g_pool.clear();
   REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint first = first_view();
   const auto a = scene.render(first);
   UpdateReport report;
   CHECK(g_front_end.update(vantage::test::view_of(a, scene.k), first, g_pool, &report) == Status::kNotInitialized);
@@ -330,7 +332,7 @@ TEST_CASE("update before initialize, and initialize from a bad pair, are refused
   CHECK(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(a, scene.k), first,
                                g_pool, &report) == Status::kInvalidArgument);
   std::vector<std::uint8_t> black(a.size(), 0);
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint second = second_view();
   CHECK(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(black, scene.k),
                                second, g_pool, &report) == Status::kUnusableImage);
   CHECK(g_pool.size() == 0u);
@@ -354,10 +356,8 @@ TEST_CASE("configure refuses cameras beyond the buffers and out-of-range setting
 
 TEST_CASE("forget_primitive_tables gives every slot the facing prior of a primitive the front end did not create") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  initialize_on_plane(scene, first, second);
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  initialize_on_plane(scene, first_view(), second_view());
+  const Viewpoint third = third_view();
   const auto c = scene.render(third);
   UpdateReport report;
   REQUIRE(ok(g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report)));
@@ -376,9 +376,9 @@ TEST_CASE("initialize and update do not allocate") {
   Scene scene;
   g_pool.clear();
   REQUIRE(ok(g_front_end.configure(scene.k, plane_config())));
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
+  const Viewpoint third = third_view();
   const auto a = scene.render(first);
   const auto b = scene.render(second);
   const auto c = scene.render(third);
@@ -416,8 +416,8 @@ void make_well_estimated(const Scene& scene, const Viewpoint& first, std::uint32
 
 TEST_CASE("adaptive scale: coplanar, well-estimated neighbours merge into one larger primitive") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   initialize_on_plane(scene, first, second);
   make_well_estimated(scene, first, 5, [](const Eigen::Vector2d&) { return 0.0; });
   float radius_before = 0.0f;
@@ -447,8 +447,8 @@ TEST_CASE("adaptive scale: coplanar, well-estimated neighbours merge into one la
 
 TEST_CASE("adaptive scale: neighbours off each other's plane, or not yet well estimated, do not merge") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
   const Viewpoint third = vantage::test::looking_at_origin({39.8, 1.0, 1.0});
   const auto image = scene.render(third);
   SECTION("a checkerboard of steps 30 sigma high: no two neighbours coplanar") {
@@ -474,9 +474,9 @@ TEST_CASE("the photometric normal turns facing-prior normals toward the plane's 
   // rays' angles (up to ~20 degrees at the image corners). The same primitives (initialization is
   // deterministic) with and without the photometric normal; those still on the facing prior without it.
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
+  const Viewpoint third = third_view();
   const auto image = scene.render(third);
   std::vector<double> angle[2];
   std::vector<double> variance[2];
@@ -541,10 +541,8 @@ struct CountingObserver final : TrackObserver {
 
 TEST_CASE("the track observer is shown every observation that reaches the EKF update, without allocating") {
   Scene scene;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  initialize_on_plane(scene, first, second);
-  const Viewpoint third = vantage::test::looking_at_origin({38.0, -6.0, 10.0});
+  initialize_on_plane(scene, first_view(), second_view());
+  const Viewpoint third = third_view();
   const auto c = scene.render(third);
   CountingObserver observer;
   observer.pool = &g_pool;
@@ -565,7 +563,7 @@ TEST_CASE("the track observer is shown every observation that reaches the EKF up
 TEST_CASE("spawn normal uncertainty: a new primitive's covariance also holds the unknown normal's share of its match") {
   Scene scene;
   // A wider pair than the other tests use, so the warp between the views matters.
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  const Viewpoint first = first_view();
   const Viewpoint second = vantage::test::looking_at_origin({39.5, 6.0, 0.0});
   FrontEndConfig without = plane_config();
   without.model_spawn_normal_uncertainty = false;
