@@ -13,6 +13,10 @@ namespace vantage::criterion_kernel {
 
 inline constexpr std::size_t kLanes = 16;  // one cluster (kClusterSize, checked in criterion_evaluate.cpp)
 
+// A slot whose log2_wa is at or below this adds exactly 0 to F (a primitive flagged kUnconsumed): it
+// still occludes, only its weight is dropped.
+inline constexpr float kZeroWeightLog2 = -1.0e4f;
+
 // The model's per-slot structure of arrays (CriterionArrays), read only.
 struct Slots {
   const float* x;

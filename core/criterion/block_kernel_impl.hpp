@@ -317,10 +317,10 @@ inline vf weights(const Slots& s, const Broadcast& b, std::size_t slot) {
   const vf su_z = s02 * ux + s12 * uy + load(s.s22 + slot) * uz;
   const vf qu = su_x * su_x + su_y * su_y + su_z * su_z;
   const vf log2_g_rest = log2(facing * inv_z * inv_z * inv_z);
-  const vf weight = exp2(load(s.log2_wa + slot) + load(s.h + slot) * (b.log2_fxfy + log2_g_rest)) *
-                    square_root(dist2 / qu);
-  // A zero-radius footprint has g = 0: it adds exactly 0 (never 0^0 = 1).
-  return select(load(s.radius + slot) > 0.0f, weight, vf{});
+  const vf log2_wa = load(s.log2_wa + slot);
+  const vf weight = exp2(log2_wa + load(s.h + slot) * (b.log2_fxfy + log2_g_rest)) * square_root(dist2 / qu);
+  // A zero-radius footprint has g = 0: it adds exactly 0 (never 0^0 = 1); so does a dropped weight.
+  return select((load(s.radius + slot) > 0.0f) & (log2_wa > kZeroWeightLog2), weight, vf{});
 }
 
 }  // namespace

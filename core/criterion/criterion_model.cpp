@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "core/criterion/block_kernel.hpp"
 #include "core/criterion/fast_math.hpp"
 #include "core/estimation/ekf.hpp"
 
@@ -132,7 +133,10 @@ Status CriterionModelView::refresh(const PrimitivePoolView& pool) {
     arrays_.s12[s] = static_cast<float>(0.5 * (S(1, 2) + S(2, 1)));
     arrays_.s22[s] = static_cast<float>(S(2, 2));
     // A zero-radius footprint has g = 0 and never contributes (radius > 0 is part of the view mask).
-    arrays_.log2_wa[s] = static_cast<float>(std::log2(S.determinant()) + (area > 0.0 ? h * std::log2(area) : 0.0));
+    // w = det Sigma (eq. 9), except for a primitive images do not consume (kUnconsumed): w = 0.
+    arrays_.log2_wa[s] = (p.flags & primitive_flags::kUnconsumed) != 0
+                             ? criterion_kernel::kZeroWeightLog2
+                             : static_cast<float>(std::log2(S.determinant()) + (area > 0.0 ? h * std::log2(area) : 0.0));
     arrays_.h[s] = static_cast<float>(h);
     arrays_.radius[s] = p.radius;
     arrays_.index[s] = i;

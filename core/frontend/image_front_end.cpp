@@ -100,7 +100,7 @@ Status FrontEndConfig::validate() const {
   }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
   if (ekf_iterations < 1 || ekf_iterations > 20) return Status::kInvalidArgument;
-  if (max_rejected_in_a_row > 255) return Status::kInvalidArgument;
+  if (max_rejected_in_a_row > 255 || unconsumed_after_rejections > 255) return Status::kInvalidArgument;
   if (subpixel_iterations < 0 || subpixel_iterations > 20) return Status::kInvalidArgument;
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
@@ -433,7 +433,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (ok(updated)) {
       ++report.updated;
       if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
-      p.flags &= static_cast<std::uint16_t>(~primitive_flags::kLostTrack);
+      p.flags &= static_cast<std::uint16_t>(~(primitive_flags::kLostTrack | primitive_flags::kUnconsumed));
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
@@ -543,8 +543,12 @@ void ImageFrontEnd::forget_cell(PrimitiveIndex i, std::size_t centre_cell) {
 
 void ImageFrontEnd::count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
                                     UpdateReport& report) {
-  if (config_.max_rejected_in_a_row == 0 || i >= kFrontEndMaxPrimitives) return;
-  if (++rejected_in_a_row_[i] < config_.max_rejected_in_a_row || !ok(pool.erase(i))) return;
+  const std::uint32_t flag_at = config_.unconsumed_after_rejections;
+  const std::uint32_t erase_at = config_.max_rejected_in_a_row;
+  if ((flag_at == 0 && erase_at == 0) || i >= kFrontEndMaxPrimitives) return;
+  if (rejected_in_a_row_[i] < 255) ++rejected_in_a_row_[i];
+  if (flag_at > 0 && rejected_in_a_row_[i] >= flag_at) pool[i].flags |= primitive_flags::kUnconsumed;
+  if (erase_at == 0 || rejected_in_a_row_[i] < erase_at || !ok(pool.erase(i))) return;
   rejected_in_a_row_[i] = 0;
   ++stats_.gated_erased;
   ++report.gated_erased;

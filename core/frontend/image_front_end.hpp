@@ -113,6 +113,11 @@ struct FrontEndConfig {
   // the capped search window, so it mostly fails to match rather than being gated. 0: never, at most 255.
   // Off by default: with 3 the bunny mission lost coverage (README, "Track loss").
   std::uint32_t max_rejected_in_a_row = 0;
+  // Unconsumed primitives: one whose last unconsumed_after_rejections predicted-in-view observations were
+  // all failed matches or gated gets primitive_flags::kUnconsumed (kept, not erased) until an accepted
+  // update clears it; the criterion leaves it out of F and the planner out of U, since images do not
+  // consume its uncertainty (core/planning/README.md, "Why coverage stalls"). 0: never, at most 255.
+  std::uint32_t unconsumed_after_rejections = 3;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -259,7 +264,8 @@ class ImageFrontEnd final : public MeasurementSource {
   // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
   // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
   void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
-  // Counts one failed or gated observation of primitive i; erases it at max_rejected_in_a_row.
+  // Counts one failed or gated observation of primitive i; flags it kUnconsumed at
+  // unconsumed_after_rejections, erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite

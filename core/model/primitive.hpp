@@ -19,6 +19,10 @@ namespace primitive_flags {
 inline constexpr std::uint16_t kNone = 0;
 inline constexpr std::uint16_t kMerged = 1u << 0;       // absorbed neighbours (adaptive scale)
 inline constexpr std::uint16_t kLostTrack = 1u << 1;    // last search failed
+// Its last K predicted-in-view observations were all rejected (failed match or gated): images do not
+// consume its uncertainty, so the criterion leaves it out of F and U (core/planning/README.md, "Why
+// coverage stalls"). Set and cleared by the measurement source; an accepted update clears it.
+inline constexpr std::uint16_t kUnconsumed = 1u << 2;
 }  // namespace primitive_flags
 
 struct Primitive {

@@ -20,6 +20,12 @@ double step_length_cells(const GridCell& a, const GridCell& b) {
   return (hi - lo) + kSqrt2 * lo;
 }
 
+// Alive and not flagged kUnconsumed: images are expected to reduce its uncertainty. A flagged primitive
+// is left out of PredictModel and U, as the criterion leaves it out of F (its gain would never come true).
+bool consumable(const PrimitivePoolView& pool, PrimitiveIndex index) {
+  return pool.is_alive(index) && (pool[index].flags & primitive_flags::kUnconsumed) == 0;
+}
+
 }  // namespace
 
 const char* SensingConfig::invalid_field() const {
@@ -347,7 +353,7 @@ void SensingExecutive::predict_model(const GridCell& goal) {
   std::size_t kept = 0;
   for (std::size_t k = 0; k < visible && k < kMaxPredictedPrimitives; ++k) {
     const PrimitiveIndex index = predicted_index_[k];
-    if (!pool_.is_alive(index)) continue;
+    if (!consumable(pool_, index)) continue;
     Eigen::Matrix3d Sigma_predicted;
     if (!ok(predict_covariance(pool_[index], view, measurement_.intrinsics(), config_.R_px2, &Sigma_predicted))) {
       continue;
@@ -365,7 +371,7 @@ double SensingExecutive::compute_utility() const {
   double u = 0.0;
   for (std::size_t k = 0; k < predicted_size_; ++k) {
     const PrimitiveIndex index = predicted_index_[k];
-    if (!pool_.is_alive(index)) continue;
+    if (!consumable(pool_, index)) continue;
     u += pool_[index].Sigma_world.determinant() - predicted_det_[k];
   }
   return u;
