@@ -27,6 +27,9 @@ OracleMeasurementSource::OracleMeasurementSource(const EmbreeScene& scene, const
   if (config_.max_gated_in_a_row < 0 || config_.max_gated_in_a_row > 255) {
     throw SimError("oracle: max_gated_in_a_row must be 0..255");
   }
+  if (config_.unconsumed_after_gated < 0 || config_.unconsumed_after_gated > 255) {
+    throw SimError("oracle: unconsumed_after_gated must be 0..255");
+  }
   if (config_.ekf_iterations < 1 || config_.ekf_iterations > 20) throw SimError("oracle: ekf_iterations must be 1..20");
   if (!(config_.image_margin_px >= 0.0) || !(config_.min_cos_incidence >= 0.0 && config_.min_cos_incidence < 1.0)) {
     throw SimError("oracle: image_margin_px must be >= 0 and min_cos_incidence in [0, 1)");
@@ -140,10 +143,15 @@ Status OracleMeasurementSource::update(const GrayImageView& /*image*/, const Vie
     if (ok(u)) {
       ++local.updated;
       gated_in_a_row_[i] = 0;
-      pool[i].flags = static_cast<std::uint16_t>(pool[i].flags & ~primitive_flags::kLostTrack);
+      pool[i].flags =
+          static_cast<std::uint16_t>(pool[i].flags & ~(primitive_flags::kLostTrack | primitive_flags::kUnconsumed));
     } else if (u == Status::kGatedOutlier) {
       ++local.gated_outliers;
-      ++gated_in_a_row_[i];
+      if (gated_in_a_row_[i] < 255) ++gated_in_a_row_[i];
+      // Images do not consume its uncertainty: the criterion leaves it out until an update is accepted.
+      if (config_.unconsumed_after_gated > 0 && gated_in_a_row_[i] >= config_.unconsumed_after_gated) {
+        pool[i].flags |= primitive_flags::kUnconsumed;
+      }
       // Track loss: its estimate disagrees with every recent observation; free the site to re-spawn it.
       if (config_.max_gated_in_a_row > 0 && gated_in_a_row_[i] >= config_.max_gated_in_a_row && ok(pool.erase(i))) {
         site_of_primitive_[i] = kNoSite;

@@ -14,6 +14,9 @@
 //    the gate is erased (UpdateReport::gated_erased) and its site freed, so augmentation re-creates it
 //    from a fresh pair. A badly initialized primitive (linearized far along its first ray) fails the gate
 //    on every later view, so without this it keeps its large covariance for good.
+//  Unconsumed (unconsumed_after_gated = K > 0): after K consecutive gated observations the primitive is
+//    flagged primitive_flags::kUnconsumed (the criterion and the planner leave it out), until an
+//    accepted update clears the flag.
 // Radius: the footprint of half a patch at the creating view's depth, kPatchSize/2 * z / fx. Normal: the
 // mesh normal. saliency_h = 1 (the oracle always finds its match). The image arguments are IGNORED.
 // The oracle assumes it is the only writer of the pool: update() returns kInvalidArgument when the pool
@@ -43,6 +46,9 @@ struct OracleConfig {
   double min_cos_incidence = 0.2;       // no observation at grazing angles (beyond ~78 degrees)
   bool augment = true;
   int max_gated_in_a_row = 5;           // track loss after K consecutive gated observations; 0: never
+  // primitive_flags::kUnconsumed after K consecutive gated observations, cleared by an accepted update
+  // (the image front end's rule, FrontEndConfig::unconsumed_after_rejections); 0: never, at most 255.
+  int unconsumed_after_gated = 3;
   std::uint32_t seed = 11;
 };
 

@@ -72,6 +72,10 @@ int run_cli(int argc, const char* const* argv) {
       ->check(CLI::Range(0.5, 1000.0));
   app.add_flag("--capture-on-segments", options.capture_on_segments,
                "also sense at the intermediate cells of the PathQry segments between waypoints");
+  app.add_option("--unconsumed-after", options.unconsumed_after,
+                 "leave a primitive out of the criterion after this many rejected observations in a row "
+                 "(0: off, default 3)")
+      ->check(CLI::Range(0u, 255u));
   app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
       ->check(CLI::Range(100u, 1000000u));
   std::size_t gt_samples = 50000;

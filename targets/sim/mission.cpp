@@ -166,6 +166,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     oc.intrinsics = scene.intrinsics;
     oc.site_count = options.oracle_sites;
     oc.seed = static_cast<std::uint32_t>(options.seed * 7919u + 11u);
+    oc.unconsumed_after_gated = static_cast<int>(options.unconsumed_after);
     oracle = std::make_unique<sim::OracleMeasurementSource>(setup.world->scene(), oc);
     g_measurement.target = oracle.get();
   } else {
@@ -173,6 +174,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     const targets::SearchDepthRange depth = targets::default_search_depth_range(geo, scene.viewing_distance);
     fc.depth_min = depth.min_m;
     fc.depth_max = depth.max_m;
+    fc.unconsumed_after_rejections = options.unconsumed_after;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;

@@ -31,6 +31,9 @@ struct MissionOptions {
   double image_spacing = 4.0;
   double split_epsilon_cells = 0.0;
   bool capture_on_segments = false;
+  // kUnconsumed after this many rejected observations in a row (front end: failed or gated; oracle:
+  // gated); 0: off. core/planning/README.md, "Why coverage stalls".
+  std::uint32_t unconsumed_after = 3;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
