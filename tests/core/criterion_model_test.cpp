@@ -124,6 +124,58 @@ TEST_CASE("a primitive behind a wall of primitives gets g = 0 and adds nothing")
   CHECK(F_alone > 0.0);
 }
 
+TEST_CASE("a primitive flagged kUnconsumed adds exactly 0 to F but still occludes") {
+  g_pool.clear();
+  const Eigen::Matrix3d Sigma = 0.01 * Eigen::Matrix3d::Identity();
+  // A few precise primitives on the plane x = 0, a ghost (sigma 3 units) off to the side that owns F,
+  // and a ghost in front of one plane primitive, hiding it.
+  for (double y = -2.0; y <= 2.0; y += 1.0) {
+    REQUIRE(ok(g_pool.insert(make_primitive({0.0, y, 1.0}, Eigen::Vector3f::UnitX(), 0.1f, Sigma, 1.0f), nullptr)));
+  }
+  PrimitiveIndex hidden, ghost, occluding_ghost;
+  REQUIRE(ok(g_pool.insert(make_primitive({0.0, 0.0, -2.0}, Eigen::Vector3f::UnitX(), 0.1f, Sigma, 1.0f), &hidden)));
+  const Eigen::Matrix3d Sigma_ghost = 9.0 * Eigen::Matrix3d::Identity();
+  REQUIRE(ok(g_pool.insert(make_primitive({2.0, 3.0, 0.0}, Eigen::Vector3f::UnitX(), 0.2f, Sigma_ghost, 1.0f), &ghost)));
+  REQUIRE(ok(g_pool.insert(make_primitive({4.0, 0.0, -2.0}, Eigen::Vector3f::UnitX(), 0.5f, Sigma_ghost, 1.0f),
+                           &occluding_ghost)));
+  const Viewpoint view = view_from({20.0, 0.0, 0.0});
+  REQUIRE(ok(g_model.refresh(g_pool)));
+  const double F_with_ghosts = evaluate_F(g_model, view);
+  CriterionTerms terms;
+  REQUIRE(ok(g_model.primitive_terms(view, test::test_intrinsics(), g_scratch, ghost, &terms)));
+  REQUIRE(terms.visible);
+  CHECK(terms.contribution > 0.1 * F_with_ghosts);  // the ghosts own F (w = det Sigma)
+
+  g_pool[ghost].flags |= primitive_flags::kUnconsumed;
+  g_pool[occluding_ghost].flags |= primitive_flags::kUnconsumed | primitive_flags::kLostTrack;
+  REQUIRE(ok(g_model.refresh(g_pool)));
+  REQUIRE(ok(g_model.primitive_terms(view, test::test_intrinsics(), g_scratch, ghost, &terms)));
+  CHECK(terms.visible);
+  CHECK(terms.w == 0.0);
+  CHECK(terms.contribution == 0.0);
+  REQUIRE(ok(g_model.primitive_terms(view, test::test_intrinsics(), g_scratch, hidden, &terms)));
+  CHECK_FALSE(terms.visible);  // the flagged ghost still occludes
+  // F is the plane's alone, in both kernels: the same as with the ghosts erased and the hidden one too.
+  double F_flagged[2] = {-1.0, -1.0};
+  const CriterionKernel kernels[2] = {CriterionKernel::kBaseline, CriterionKernel::kAvx2Fma};
+  for (int k = 0; k < 2; ++k) {
+    if (!criterion_kernel_supported(kernels[k])) continue;
+    REQUIRE(ok(g_scratch.select_kernel(kernels[k])));
+    F_flagged[k] = evaluate_F(g_model, view);
+  }
+  REQUIRE(ok(g_scratch.select_kernel(CriterionKernel::kAuto)));
+  CHECK(F_flagged[0] < 1e-6 * F_with_ghosts);
+  REQUIRE(ok(g_pool.erase(ghost)));
+  REQUIRE(ok(g_pool.erase(occluding_ghost)));
+  REQUIRE(ok(g_pool.erase(hidden)));
+  REQUIRE(ok(g_model.refresh(g_pool)));
+  const double F_plane = evaluate_F(g_model, view);
+  CHECK(F_plane > 0.0);
+  for (double F : F_flagged) {
+    if (F >= 0.0) CHECK(F == Approx(F_plane).epsilon(1e-4));  // float sums relative to another scale
+  }
+}
+
 TEST_CASE("invisible primitives add exactly 0 even with h = 0 (no 0^0 = 1)") {
   g_pool.clear();
   const Eigen::Matrix3d Sigma = 0.01 * Eigen::Matrix3d::Identity();

@@ -223,6 +223,73 @@ TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one r
   CHECK(g_front_end.configure(scene.k, off) == Status::kInvalidArgument);
 }
 
+TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept), an accepted update clears it") {
+  Scene scene;
+  FrontEndConfig config = plane_config();
+  config.max_rejected_in_a_row = 0;  // no track loss: the flag alone
+  config.unconsumed_after_rejections = 3;
+  const std::uint32_t k = config.unconsumed_after_rejections;
+  initialize_on_plane(scene, first_view(), second_view(), config);
+  // A primitive near the image centre, confirmed (a failed match does not erase it).
+  const auto central = []() {
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
+      g_pool[i].observation_count = 1;
+      return i;
+    }
+    return kInvalidPrimitive;
+  };
+  PrimitiveIndex ghost = central();
+  REQUIRE(ghost != kInvalidPrimitive);
+  const auto original_patch = g_pool[ghost].patch;
+  // A checkerboard patch the image does not show: every match of it fails.
+  const auto spoil = [](Primitive& p) {
+    for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
+  };
+  const Viewpoint view = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
+  const auto image = scene.render(view);
+  const auto update = [&]() {
+    UpdateReport report;
+    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), view, g_pool, &report)));
+  };
+  const auto flagged = [&]() { return (g_pool[ghost].flags & primitive_flags::kUnconsumed) != 0; };
+  spoil(g_pool[ghost]);
+  for (std::uint32_t n = 1; n < k; ++n) {
+    update();
+    REQUIRE(g_pool.is_alive(ghost));
+    CHECK_FALSE(flagged());
+  }
+  update();  // the K-th rejection in a row
+  REQUIRE(g_pool.is_alive(ghost));
+  CHECK(flagged());
+  update();  // stays flagged while rejections go on, and is never erased
+  REQUIRE(g_pool.is_alive(ghost));
+  CHECK(flagged());
+  const std::uint32_t observations = g_pool[ghost].observation_count;
+  g_pool[ghost].patch = original_patch;
+  update();  // accepted: the flag goes
+  REQUIRE(g_pool.is_alive(ghost));
+  CHECK(g_pool[ghost].observation_count == observations + 1);
+  CHECK_FALSE(flagged());
+  // The count restarted: K - 1 new rejections do not flag it again.
+  spoil(g_pool[ghost]);
+  for (std::uint32_t n = 1; n < k; ++n) update();
+  CHECK_FALSE(flagged());
+
+  // Off (0): never flagged.
+  FrontEndConfig off = plane_config();
+  off.unconsumed_after_rejections = 0;
+  initialize_on_plane(scene, first_view(), second_view(), off);
+  ghost = central();
+  REQUIRE(ghost != kInvalidPrimitive);
+  spoil(g_pool[ghost]);
+  for (std::uint32_t n = 0; n < k + 1; ++n) update();
+  REQUIRE(g_pool.is_alive(ghost));
+  CHECK_FALSE(flagged());
+  off.unconsumed_after_rejections = 256;
+  CHECK(g_front_end.configure(scene.k, off) == Status::kInvalidArgument);
+}
+
 TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
   Scene scene;
   const Viewpoint first = first_view();

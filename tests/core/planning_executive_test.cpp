@@ -37,7 +37,75 @@ struct Fixture {
   }
 };
 
+// The fake source's ring plus a ghost at the object's centre (sigma 5 units) that no image updates, as
+// a measurement source leaves a primitive whose observations are all rejected; ghost_flags are its flags.
+struct GhostMeasurement final : MeasurementSource {
+  FakeMeasurement ring;
+  std::uint16_t ghost_flags = primitive_flags::kNone;
+  PrimitiveIndex ghost = kInvalidPrimitive;
+
+  Status initialize(const GrayImageView& a, const Viewpoint& va, const GrayImageView& b, const Viewpoint& vb,
+                    PrimitivePoolView& pool, UpdateReport* report) override {
+    const Status s = ring.initialize(a, va, b, vb, pool, report);
+    if (!ok(s)) return s;
+    Primitive p;
+    p.X_world = Eigen::Vector3d(0.0, 0.0, 0.5);
+    p.Sigma_world = Eigen::Matrix3d::Identity() * 25.0;
+    p.flags = ghost_flags;
+    return pool.insert(p, &ghost);
+  }
+  Status update(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,
+                UpdateReport* report) override {
+    const Eigen::Matrix3d Sigma_ghost = pool[ghost].Sigma_world;
+    const Status s = ring.update(image, view, pool, report);
+    pool[ghost].Sigma_world = Sigma_ghost;  // every observation of it rejected
+    return s;
+  }
+  const PinholeIntrinsics& intrinsics() const override { return ring.intrinsics(); }
+};
+
 }  // namespace
+
+TEST_CASE("ExecuteSensing: a primitive flagged kUnconsumed is left out of PredictModel and U") {
+  struct Run {
+    std::size_t predicted = 0;
+    double utility_planned = 0.0;
+    int utility_replans = 0;
+  };
+  auto run = [](std::uint16_t ghost_flags) {
+    auto pool = std::make_unique<PrimitivePool<256>>();
+    GhostMeasurement measurement;
+    measurement.ghost_flags = ghost_flags;
+    measurement.ring.shrink = 0.5;
+    SyntheticGrid grid{20};
+    grid.map_data.block_square(8, 11);
+    grid.map_data.cost_bowl(GridCell{18, 10});
+    auto exec = std::make_unique<SensingExecutive>(*pool, measurement, grid, nullptr);
+    SensingConfig config;
+    config.rho_sigma = 0.0;
+    config.eta_utility = 0.0;
+    config.max_images = 12;
+    const Viewpoint v = start_view(grid, GridCell{1, 10});
+    REQUIRE(exec->begin(config, dummy_image(), v, dummy_image(), v) == Status::kOk);
+    exec->on_grid_evaluated();
+    Run r;
+    r.predicted = exec->predicted_count();
+    r.utility_planned = exec->utility();
+    const MissionLog log = drive(*exec);
+    r.utility_replans = static_cast<int>(std::count(log.replans.begin(), log.replans.end(), ReplanReason::kUtility));
+    return r;
+  };
+  const Run flagged = run(primitive_flags::kUnconsumed);
+  const Run plain = run(primitive_flags::kNone);
+  CHECK(plain.predicted == 25u);
+  CHECK(flagged.predicted == 24u);  // the ring only
+  CHECK(plain.utility_planned > 1000.0 * flagged.utility_planned);
+  CHECK(flagged.utility_planned > 0.0);
+  // Unflagged, the ghost's predicted gain never comes true and U never falls below eta: no replan on U.
+  CHECK(plain.utility_replans == 0);
+  // Flagged, U is the ring's: the images consume it and the plan is renewed on U.
+  CHECK(flagged.utility_replans >= 1);
+}
 
 TEST_CASE("ExecuteSensing: a mission starts with a grid evaluation, then follows SplitPath to the NBV") {
   Fixture f;

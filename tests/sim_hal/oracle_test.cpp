@@ -170,6 +170,46 @@ TEST_CASE("oracle track loss: K gated observations in a row erase a primitive an
   CHECK_THROWS_AS(OracleMeasurementSource(scene, config), SimError);
 }
 
+TEST_CASE("oracle unconsumed: K gated observations in a row flag a primitive, an accepted update clears it",
+          "[sim_hal][oracle]") {
+  const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
+  OracleConfig config;
+  config.site_count = 500;
+  config.max_gated_in_a_row = 0;  // no track loss: the flag alone
+  config.unconsumed_after_gated = 3;
+  OracleMeasurementSource oracle(scene, config);
+  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+                               g_pool, &report)));
+  const PrimitiveIndex ghost = 0;
+  REQUIRE(g_pool.is_alive(ghost));
+  const Eigen::Vector3d truth = *oracle.true_point(ghost);
+  // A confident estimate off its true point: every observation fails the gate.
+  const auto spoil = [&]() {
+    g_pool[ghost].X_world = truth + Eigen::Vector3d(0.0, 0.7, 0.7);
+    g_pool[ghost].Sigma_world = Eigen::Matrix3d::Identity() * 1e-4;
+  };
+  const auto flagged = [&]() { return (g_pool[ghost].flags & primitive_flags::kUnconsumed) != 0; };
+  spoil();
+  for (int n = 1; n < config.unconsumed_after_gated; ++n) {
+    REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+    CHECK_FALSE(flagged());
+  }
+  REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+  REQUIRE(g_pool.is_alive(ghost));
+  CHECK(flagged());
+  // Back at its true point with an honest covariance: accepted, the flag goes.
+  g_pool[ghost].X_world = truth;
+  g_pool[ghost].Sigma_world = Eigen::Matrix3d::Identity() * 1e-2;
+  REQUIRE(ok(oracle.update(GrayImageView{}, a, g_pool, &report)));
+  CHECK_FALSE(flagged());
+
+  config.unconsumed_after_gated = 256;
+  CHECK_THROWS_AS(OracleMeasurementSource(scene, config), SimError);
+}
+
 TEST_CASE("the oracle is deterministic for a seed", "[sim_hal][oracle]") {
   const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
   OracleConfig config;
