@@ -48,6 +48,18 @@ double pool_digest(const PrimitivePoolView& pool) {
   return digest;
 }
 
+// A checkerboard reference patch the rendered plane does not show: every match of p fails.
+void spoil(Primitive& p) {
+  for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
+}
+
+// One update of g_pool from view with its rendered image; REQUIREs success.
+UpdateReport update_from(const std::vector<std::uint8_t>& image, const PinholeIntrinsics& k, const Viewpoint& view) {
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, k), view, g_pool, &report)));
+  return report;
+}
+
 // The views most cases use: the small-baseline pair the front end starts from (2 units apart at 40)
 // and a third view about 17 degrees away, with elevation.
 Viewpoint first_view() { return vantage::test::looking_at_origin({40.0, 0.0, 0.0}); }
@@ -183,16 +195,9 @@ TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one r
   const PrimitiveIndex lost = chosen[0];
   const PrimitiveIndex kept = chosen[1];
   const auto original_patch = g_pool[kept].patch;
-  const auto spoil = [](Primitive& p) {
-    for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
-  };
   const Viewpoint third = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
   const auto image = scene.render(third);
-  const auto update = [&]() {
-    UpdateReport report;
-    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
-    return report;
-  };
+  const auto update = [&]() { return update_from(image, scene.k, third); };
   std::uint64_t erased_reported = 0;
   for (std::uint32_t n = 1; n < k; ++n) {
     spoil(g_pool[lost]);
@@ -242,16 +247,9 @@ TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept),
   PrimitiveIndex ghost = central();
   REQUIRE(ghost != kInvalidPrimitive);
   const auto original_patch = g_pool[ghost].patch;
-  // A checkerboard patch the image does not show: every match of it fails.
-  const auto spoil = [](Primitive& p) {
-    for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
-  };
   const Viewpoint view = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
   const auto image = scene.render(view);
-  const auto update = [&]() {
-    UpdateReport report;
-    REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), view, g_pool, &report)));
-  };
+  const auto update = [&]() { (void)update_from(image, scene.k, view); };
   const auto flagged = [&]() { return (g_pool[ghost].flags & primitive_flags::kUnconsumed) != 0; };
   spoil(g_pool[ghost]);
   for (std::uint32_t n = 1; n < k; ++n) {

@@ -36,6 +36,16 @@ double mean_nees(const OracleMeasurementSource& oracle, const PrimitivePoolView&
   return sum / static_cast<double>(n);
 }
 
+// Fills g_pool from the pair 30 units out on +x, 4 units apart; returns the first view.
+Viewpoint initialize_from_pair(OracleMeasurementSource& oracle) {
+  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+                               g_pool, &report)));
+  return a;
+}
+
 }  // namespace
 
 TEST_CASE("oracle initialization: depth-elongated covariance and honest errors", "[sim_hal][oracle]") {
@@ -100,11 +110,8 @@ TEST_CASE("oracle track loss: K gated observations in a row erase a primitive an
   config.site_count = 500;
   config.max_gated_in_a_row = 3;
   OracleMeasurementSource oracle(scene, config);
-  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
-  g_pool.clear();
+  const Viewpoint a = initialize_from_pair(oracle);
   UpdateReport report;
-  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
-                               g_pool, &report)));
   REQUIRE(g_pool.size() > 10);
   const PrimitiveIndex lost = 0;
   const PrimitiveIndex kept = 1;
@@ -178,11 +185,8 @@ TEST_CASE("oracle unconsumed: K gated observations in a row flag a primitive, an
   config.max_gated_in_a_row = 0;  // no track loss: the flag alone
   config.unconsumed_after_gated = 3;
   OracleMeasurementSource oracle(scene, config);
-  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
-  g_pool.clear();
+  const Viewpoint a = initialize_from_pair(oracle);
   UpdateReport report;
-  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
-                               g_pool, &report)));
   const PrimitiveIndex ghost = 0;
   REQUIRE(g_pool.is_alive(ghost));
   const Eigen::Vector3d truth = *oracle.true_point(ghost);
