@@ -9,7 +9,8 @@
 //              0 when back-facing, behind the camera, centre outside the image, or occluded.
 //   h(P)     = Primitive::saliency_h (core/criterion/saliency.hpp, set when the primitive is created).
 //   C = g^h / f (eq. 7) and F(nu) = sum_i w_i C_i (eq. 8), w = det Sigma (eq. 9), over visible
-//   primitives only: an invisible primitive (g = 0) adds exactly 0, never 0^0 = 1.
+//   primitives only: an invisible primitive (g = 0) adds exactly 0, never 0^0 = 1. A primitive flagged
+//   primitive_flags::kUnconsumed (its observations keep being rejected) has w = 0 but still occludes.
 //
 // CriterionModel<Capacity>::refresh() computes everything that does not depend on nu once per model
 // update: Sigma and det Sigma (in float, relative to the model's largest variance so that tiny

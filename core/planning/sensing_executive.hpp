@@ -37,7 +37,9 @@
 //
 // U(M_nu*, M) = sum over the primitives visible from nu* (at PredictModel time) of det(Sigma_now) -
 // det(Sigma_predicted). Both dets come from the same primitive index; primitives erased since then are
-// left out of the sum.
+// left out of the sum, and so are primitives flagged primitive_flags::kUnconsumed (at PredictModel or
+// since): the measurement source rejects their observations, so images do not consume their value (the
+// criterion gives them w = 0 in F for the same reason; core/planning/README.md, "The cycling trap").
 //
 // The object holds every buffer (about 3 MB with the default pool capacity): keep it in static storage.
 #include <cstddef>
