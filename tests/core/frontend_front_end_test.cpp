@@ -228,7 +228,7 @@ TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one r
   CHECK(g_front_end.configure(scene.k, off) == Status::kInvalidArgument);
 }
 
-TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept), an accepted update clears it") {
+TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept) and an accepted update clears it") {
   Scene scene;
   FrontEndConfig config = plane_config();
   config.max_rejected_in_a_row = 0;  // no track loss: the flag alone

@@ -177,7 +177,7 @@ TEST_CASE("oracle track loss: K gated observations in a row erase a primitive an
   CHECK_THROWS_AS(OracleMeasurementSource(scene, config), SimError);
 }
 
-TEST_CASE("oracle unconsumed: K gated observations in a row flag a primitive, an accepted update clears it",
+TEST_CASE("oracle unconsumed: K gated observations in a row flag a primitive and an accepted update clears it",
           "[sim_hal][oracle]") {
   const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
   OracleConfig config;
