@@ -19,6 +19,7 @@ namespace {
 constexpr std::uint8_t kCellUpdated = 1u << 0;
 constexpr std::uint8_t kCellSpawned = 1u << 1;
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+static_assert(2 * kFrontEndMaxHalfWindow + 3 <= kWindowSearchMaxBox, "the widest search box fits search_window");
 
 UpdateReport& report_or(UpdateReport* report, UpdateReport& fallback) {
   UpdateReport& out = report != nullptr ? *report : fallback;
