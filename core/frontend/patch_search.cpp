@@ -113,10 +113,10 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const double b = query.S_inv(0, 1);
   const double c = query.S_inv(1, 0);
   const double e = query.S_inv(1, 1);
-  // The gate test four pixels at a time (each lane the scalar form's operations in its order, so the
-  // same bits; the rows are short, and a compiler-vectorized loop spent most of its time in its prologue
-  // and epilogue). A row's last group may test up to three pixels past its last candidate: the ring
-  // column x1 and beyond, cleared by interior_bits.
+  // The gate test four pixels at a time, the last one or two as a pair (each lane the scalar form's
+  // operations in its order, so the same bits; the rows are short, and a compiler-vectorized loop spent
+  // most of its time in its prologue and epilogue). A row's last group may test a pixel past its last
+  // candidate: the ring column x1, cleared by interior_bits.
   const Double2 px2 = splat2(query.predicted_px.x());
   const Double2 a2 = splat2(a);
   const Double2 c2 = splat2(c);
@@ -129,13 +129,19 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     const Double2 e_dy2 = splat2(e * dy);
     Double2 xa = Double2{static_cast<double>(x0 + 1), static_cast<double>(x0 + 2)};
     std::uint64_t bits = 0;
-    for (std::int32_t x = x0 + 1; x < x1; x += 4) {
+    std::int32_t x = x0 + 1;
+    for (; x + 2 < x1; x += 4) {
       const Double2 dxa = xa - px2;
       const Double2 dxb = (xa + splat2(2.0)) - px2;
       const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
       const Long2 inb = dxb * (a2 * dxb + b_dy2) + dy2 * (c2 * dxb + e_dy2) <= gate2;
       bits |= static_cast<std::uint64_t>(mask_bits(ina) | (mask_bits(inb) << 2)) << (x - x0);
       xa += splat2(4.0);
+    }
+    if (x < x1) {  // one or two candidates left: one pair
+      const Double2 dxa = xa - px2;
+      const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
+      bits |= static_cast<std::uint64_t>(mask_bits(ina)) << (x - x0);
     }
     inside[y - y0] = bits & interior_bits;
   }
