@@ -89,6 +89,11 @@ int run_cli(int argc, const char* const* argv) {
   }
   options.live = !quiet;
   options.measurement = measurement == "oracle" ? MeasurementKind::kOracle : MeasurementKind::kImage;
+  if (options.gate_diagnostics && options.measurement != MeasurementKind::kImage) {
+    // The diagnostics classify the image front end's matches; the oracle's observations are ground truth.
+    std::cerr << "vantage-sim: --gate-diagnostics needs --measurement image (got " << measurement << ")\n";
+    return 1;
+  }
   if (!parse_planner_policy(planner_name.c_str(), &options.planner)) {
     std::cerr << "vantage-sim: --planner " << planner_name << ": unknown planner\n";
     return 1;
