@@ -19,6 +19,7 @@ namespace {
 constexpr std::uint8_t kCellUpdated = 1u << 0;
 constexpr std::uint8_t kCellSpawned = 1u << 1;
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+static_assert(2 * kFrontEndMaxHalfWindow + 3 <= kWindowSearchMaxBox, "the widest search box fits search_window");
 
 UpdateReport& report_or(UpdateReport* report, UpdateReport& fallback) {
   UpdateReport& out = report != nullptr ? *report : fallback;
@@ -330,11 +331,21 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const std::int32_t cy0 = floor_to_int((predicted.y() - reach) * inv_stride);
     const std::int32_t cy1 = floor_to_int((predicted.y() + reach) * inv_stride);
     const double reach2 = reach * reach;
-    for (std::int32_t cy = cy0 < 0 ? 0 : cy0; cy <= cy1 && cy < cells_y_; ++cy) {
-      const double dy = (cy + 0.5) * stride - 0.5 - predicted.y();
-      for (std::int32_t cx = cx0 < 0 ? 0 : cx0; cx <= cx1 && cx < cells_x_; ++cx) {
-        const double dx = (cx + 0.5) * stride - 0.5 - predicted.x();
-        if (dx * dx + dy * dy <= reach2) cell_covered_[static_cast<std::size_t>(cy) * cells_x_ + cx] = 1;
+    // Bounds and the prediction in locals: the byte stores below may alias any member, so the compiler
+    // would reload them after each one.
+    const std::int32_t cx_begin = cx0 < 0 ? 0 : cx0;
+    const std::int32_t cx_end = cx1 < cells_x_ ? cx1 + 1 : cells_x_;
+    const std::int32_t cy_end = cy1 < cells_y_ ? cy1 + 1 : cells_y_;
+    const double px = predicted.x();
+    const double py = predicted.y();
+    std::uint8_t* const covered = cell_covered_.data();
+    const std::size_t row_cells = static_cast<std::size_t>(cells_x_);
+    for (std::int32_t cy = cy0 < 0 ? 0 : cy0; cy < cy_end; ++cy) {
+      const double dy = (cy + 0.5) * stride - 0.5 - py;
+      std::uint8_t* const row = covered + static_cast<std::size_t>(cy) * row_cells;
+      for (std::int32_t cx = cx_begin; cx < cx_end; ++cx) {
+        const double dx = (cx + 0.5) * stride - 0.5 - px;
+        if (dx * dx + dy * dy <= reach2) row[cx] = 1;
       }
     }
 

@@ -45,18 +45,26 @@ VANTAGE_MATCH_INLINE vf splat(float s) {
   return vf{s, s, s, s};
 #endif
 }
+// dst[k] = src[k] for k < 8.
+VANTAGE_MATCH_INLINE void bytes8_to_floats(const std::uint8_t* src, float* dst) {
+#if defined(__AVX2__)
+  // Widened from a braced list: one vpmovzxbd and one conversion (GCC lowers __builtin_convertvector
+  // from a byte vector lane by lane).
+  const vi widened = {src[0], src[1], src[2], src[3], src[4], src[5], src[6], src[7]};
+  store(dst, __builtin_convertvector(widened, vf));
+#else
+  // A fixed-size loop the compiler vectorizes (SSE2 unpacks, NEON uxtl).
+  std::uint8_t chunk[8];
+  __builtin_memcpy(chunk, src, sizeof chunk);
+  for (int k = 0; k < 8; ++k) dst[k] = static_cast<float>(chunk[k]);
+#endif
+}
 // dst[k] = src[k] for k < 16.
 VANTAGE_MATCH_INLINE void bytes16_to_floats(const std::uint8_t* src, float* dst) {
 #if defined(__AVX2__)
-  // Each eight bytes widened from a braced list: one vpmovzxbd and one conversion (GCC lowers
-  // __builtin_convertvector from a byte vector lane by lane).
-  for (int half = 0; half < 16; half += 8) {
-    const std::uint8_t* p = src + half;
-    const vi widened = {p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]};
-    store(dst + half, __builtin_convertvector(widened, vf));
-  }
+  bytes8_to_floats(src, dst);
+  bytes8_to_floats(src + 8, dst + 8);
 #else
-  // A fixed-size loop the compiler vectorizes (SSE2 unpacks, NEON uxtl).
   std::uint8_t chunk[16];
   __builtin_memcpy(chunk, src, sizeof chunk);
   for (int k = 0; k < 16; ++k) dst[k] = static_cast<float>(chunk[k]);
@@ -251,14 +259,19 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   constexpr int kResampledCols = kGroup + 2;
   constexpr int kResampledStride = (kResampledCols + kWidth - 1) / kWidth * kWidth;
   constexpr int kBlockStride = (kMargin + kResampledStride + 15) / 16 * 16;  // whole conversion chunks
-  static_assert(kMargin - 1 + kResampledStride + 1 <= kBlockStride, "block rows too short for the resampling");
+  // The columns the resampling reads (up to kMargin - 1 + kResampledStride), in whole chunks of 16 and 8.
+  constexpr int kBlockRead = (kMargin + kResampledStride + 7) / 8 * 8;
+  static_assert(kMargin - 1 + kResampledStride + 1 <= kBlockRead && kBlockRead <= kBlockStride,
+                "block rows too short for the resampling");
   float block[kBlock][kBlockStride];
   const std::int32_t block_x = x - kSize / 2 - kMargin;
   const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(y - kSize / 2 - kMargin) * image.stride_bytes + block_x;
   const std::int32_t readable = image.width_px - block_x;
   for (int j = 0; j < kBlock; ++j, src += image.stride_bytes) {
-    if (readable >= kBlockStride) {
-      for (int i = 0; i < kBlockStride; i += 16) bytes16_to_floats(src + i, block[j] + i);
+    if (readable >= kBlockRead) {
+      int i = 0;
+      for (; i + 16 <= kBlockRead; i += 16) bytes16_to_floats(src + i, block[j] + i);
+      if (i < kBlockRead) bytes8_to_floats(src + i, block[j] + i);
     } else {
       convert_row(src, kBlock, readable, block[j], kBlockStride);
     }

@@ -2,10 +2,8 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <limits>
 
-#include "core/frontend/float4.hpp"
 #include "core/geometry/projection.hpp"
 
 namespace vantage {
@@ -17,8 +15,18 @@ using Double2 = double __attribute__((vector_size(16)));
 using Long2 = std::int64_t __attribute__((vector_size(16)));
 Double2 splat2(double value) { return Double2{value, value}; }
 
+// The two lanes of a comparison mask (each all ones or zeros) as bits 0 and 1.
+unsigned mask_bits(Long2 mask) {
+#if defined(__SSE2__)
+  return static_cast<unsigned>(__builtin_ia32_movmskpd(reinterpret_cast<Double2>(mask)));
+#else
+  return static_cast<unsigned>((mask[0] & 1) | (mask[1] & 2));
+#endif
+}
+
 // Local maxima the window search keeps for its uniqueness test; more take a second scan.
 constexpr std::int32_t kWindowSearchMaxPeaks = 16;
+static_assert(kWindowSearchMaxBox <= 64, "a row of gate flags is one 64-bit word");
 
 // refine_subpixel's stop: a step shorter than this (the searches take MatchConfig::subpixel_stop_step_px).
 constexpr double kRefineStopStepPx = 1e-3;
@@ -94,61 +102,61 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const std::int32_t w = x1 - x0 + 1;
   const std::int32_t h = y1 - y0 + 1;
   if (w < 3 || h < 3) return MatchOutcome::kNoRoom;
-  const std::size_t box_size = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  if (w > kWindowSearchMaxBox || h > kWindowSearchMaxBox) return MatchOutcome::kNoRoom;
   const std::size_t ncc_size = static_cast<std::size_t>(h) * static_cast<std::size_t>(ncc_box_out_stride(w));
-  if (box_size + ncc_size > scratch.size()) return MatchOutcome::kNoRoom;
+  if (ncc_size > scratch.size()) return MatchOutcome::kNoRoom;
   // Candidates inside the gate ellipse (the pixel nearest the prediction always counts as inside, so a
-  // tiny ellipse between pixel centres still has one), and the rectangle that holds them.
-  float* inside = scratch.data();
+  // tiny ellipse between pixel centres still has one) as one bit per pixel: bit x - x0 of
+  // inside[y - y0]; then the rectangle that holds them.
+  std::uint64_t inside[kWindowSearchMaxBox];  // rows y0 + 1 .. y1 - 1 written below, the only ones read
   const double a = query.S_inv(0, 0);
   const double b = query.S_inv(0, 1);
   const double c = query.S_inv(1, 0);
   const double e = query.S_inv(1, 1);
-  std::int32_t in_x0 = x1;
-  std::int32_t in_x1 = x0;
-  std::int32_t in_y0 = y1;
-  std::int32_t in_y1 = y0;
-  // The gate test first, four pixels at a time (each lane the scalar form's operations in its order, so
-  // the same bits; the rows are short, and a compiler-vectorized loop spent most of its time in its
-  // prologue and epilogue), then the rectangle. A row's last group may write up to three flags past its
-  // last candidate: into its ring column x1 and the next row's first two, which that row (or, after the
-  // last candidate row, the ring row y1) writes or nobody reads.
+  // The gate test four pixels at a time, the last one or two as a pair (each lane the scalar form's
+  // operations in its order, so the same bits; the rows are short, and a compiler-vectorized loop spent
+  // most of its time in its prologue and epilogue). A row's last group may test a pixel past its last
+  // candidate: the ring column x1, cleared by interior_bits.
   const Double2 px2 = splat2(query.predicted_px.x());
   const Double2 a2 = splat2(a);
   const Double2 c2 = splat2(c);
   const Double2 gate2 = splat2(query.gate_chi2);
-  const Int4 one_bits = Int4{0x3f800000, 0x3f800000, 0x3f800000, 0x3f800000};  // 1.0f
+  const std::uint64_t interior_bits = ((std::uint64_t{1} << (w - 1)) - 1) & ~std::uint64_t{1};
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
     const double dy = y - query.predicted_px.y();
     const Double2 dy2 = splat2(dy);
     const Double2 b_dy2 = splat2(b * dy);
     const Double2 e_dy2 = splat2(e * dy);
-    float* row = inside + (y - y0) * w - x0;  // row[x]
     Double2 xa = Double2{static_cast<double>(x0 + 1), static_cast<double>(x0 + 2)};
-    for (std::int32_t x = x0 + 1; x < x1; x += 4) {
+    std::uint64_t bits = 0;
+    std::int32_t x = x0 + 1;
+    for (; x + 2 < x1; x += 4) {
       const Double2 dxa = xa - px2;
       const Double2 dxb = (xa + splat2(2.0)) - px2;
       const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
       const Long2 inb = dxb * (a2 * dxb + b_dy2) + dy2 * (c2 * dxb + e_dy2) <= gate2;
-      // Each 64-bit mask lane is all ones or zeros: its low halves, as 1.0f or 0.0f.
-      const Int4 flags = __builtin_shufflevector(reinterpret_cast<Int4>(ina), reinterpret_cast<Int4>(inb), 0, 2, 4, 6) &
-                         one_bits;
-      std::memcpy(row + x, &flags, sizeof flags);
+      bits |= static_cast<std::uint64_t>(mask_bits(ina) | (mask_bits(inb) << 2)) << (x - x0);
       xa += splat2(4.0);
     }
+    if (x < x1) {  // one or two candidates left: one pair
+      const Double2 dxa = xa - px2;
+      const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
+      bits |= static_cast<std::uint64_t>(mask_bits(ina)) << (x - x0);
+    }
+    inside[y - y0] = bits & interior_bits;
   }
-  if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[(cy - y0) * w + cx - x0] = 1.0f;
-  // Each row's first and last candidate, scanned for from both ends (most of a small ellipse's pixels
-  // are candidates, so both scans stop early).
+  if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[cy - y0] |= std::uint64_t{1} << (cx - x0);
+  std::int32_t in_x0 = x1;
+  std::int32_t in_x1 = x0;
+  std::int32_t in_y0 = y1;
+  std::int32_t in_y1 = y0;
   for (std::int32_t y = y0 + 1; y < y1; ++y) {
-    const float* row = inside + (y - y0) * w;  // row[x - x0]
-    std::int32_t first = 1;
-    while (first < w - 1 && row[first] == 0.0f) ++first;
-    if (first == w - 1) continue;
-    std::int32_t last = w - 2;
-    while (row[last] == 0.0f) --last;
-    in_x0 = x0 + first < in_x0 ? x0 + first : in_x0;
-    in_x1 = x0 + last > in_x1 ? x0 + last : in_x1;
+    const std::uint64_t bits = inside[y - y0];
+    if (bits == 0) continue;
+    const std::int32_t first = x0 + __builtin_ctzll(bits);
+    const std::int32_t last = x0 + 63 - __builtin_clzll(bits);
+    in_x0 = first < in_x0 ? first : in_x0;
+    in_x1 = last > in_x1 ? last : in_x1;
     in_y0 = y < in_y0 ? y : in_y0;
     in_y1 = y;
   }
@@ -161,11 +169,11 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const std::int32_t n_w = in_x1 - in_x0 + 3;
   const std::int32_t n_h = in_y1 - in_y0 + 3;
   const std::int32_t n_stride = ncc_box_out_stride(n_w);
-  float* ncc = inside + box_size;
+  float* ncc = scratch.data();
   float* const rest = ncc + ncc_size;
   // The kernel directly (ncc_box's checks, the kernel chosen once per search; a CPU without the
   // configured kernel gets the baseline). A flat template correlates at -1 everywhere: no match.
-  if (scratch.size() - box_size - ncc_size < ncc_box_scratch_size(n_w, n_h)) return MatchOutcome::kNoRoom;
+  if (scratch.size() - ncc_size < ncc_box_scratch_size(n_w, n_h)) return MatchOutcome::kNoRoom;
   if (tmpl.norm <= 0.0f || tmpl.valid_count < 2) {
     *best_ncc = -1.0f;
     return MatchOutcome::kBelowThreshold;
@@ -174,7 +182,6 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   const match_kernel::Box box{n_x0, n_y0, n_w, n_h, ncc_box_plane_stride(n_w), n_stride};
   kernels.ncc_box(kernel_image(image), kernel_template(tmpl), box, rest, ncc);
   auto value = [&](std::int32_t x, std::int32_t y) { return ncc[(y - n_y0) * n_stride + x - n_x0]; };
-  auto is_inside = [&](std::int32_t x, std::int32_t y) { return inside[(y - y0) * w + x - x0] != 0.0f; };
   // The eight neighbours, those below and right first: the scans below run in raster order, so a
   // candidate on the rising slope toward a peak usually fails on its first test.
   auto is_local_max = [&](std::int32_t x, std::int32_t y) {
@@ -183,6 +190,14 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     const float v = *centre;
     return !(centre[s] > v || centre[1] > v || centre[s + 1] > v || centre[s - 1] > v || centre[-1] > v ||
              centre[-s] > v || centre[-s + 1] > v || centre[-s - 1] > v);
+  };
+  // Every candidate in raster order: f(x, y), stopping when it returns true.
+  auto for_each_candidate = [&](auto f) {
+    for (std::int32_t y = in_y0; y <= in_y1; ++y) {
+      for (std::uint64_t bits = inside[y - y0]; bits != 0; bits &= bits - 1) {
+        if (f(x0 + __builtin_ctzll(bits), y)) return;
+      }
+    }
   };
   // One pass for the best local maximum inside the gate ellipse and the other local maxima that could make
   // it ambiguous. Once the best reaches ncc_min, only values >= low can be either: the uniqueness bound
@@ -204,45 +219,42 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   float best = -2.0f;
   std::int32_t bx = 0;
   std::int32_t by = 0;
-  for (std::int32_t y = in_y0; y <= in_y1; ++y) {
-    const float* ncc_row = ncc + (y - n_y0) * n_stride - n_x0;  // ncc_row[x]
-    const float* inside_row = inside + (y - y0) * w - x0;      // inside_row[x]
-    for (std::int32_t x = in_x0; x <= in_x1; ++x) {
-      const float v = ncc_row[x];
-      if (!(v >= low) || inside_row[x] == 0.0f || !is_local_max(x, y)) continue;
-      if (peak_count < kWindowSearchMaxPeaks) {
-        peaks[peak_count++] = Peak{x, y, v};
-      } else {
-        peaks_overflow = true;
-      }
-      if (v > best) {
-        best = v;
-        bx = x;
-        by = y;
-      }
+  for_each_candidate([&](std::int32_t x, std::int32_t y) {
+    const float v = value(x, y);
+    if (!(v >= low) || !is_local_max(x, y)) return false;
+    if (peak_count < kWindowSearchMaxPeaks) {
+      peaks[peak_count++] = Peak{x, y, v};
+    } else {
+      peaks_overflow = true;
     }
-  }
+    if (v > best) {
+      best = v;
+      bx = x;
+      by = y;
+    }
+    return false;
+  });
   if (peak_count == 0) {
-    for (std::int32_t y = in_y0; y <= in_y1; ++y) {
-      for (std::int32_t x = in_x0; x <= in_x1; ++x) {
-        if (!is_inside(x, y) || value(x, y) <= best || !is_local_max(x, y)) continue;
-        best = value(x, y);
-        bx = x;
-        by = y;
-      }
-    }
+    for_each_candidate([&](std::int32_t x, std::int32_t y) {
+      if (value(x, y) <= best || !is_local_max(x, y)) return false;
+      best = value(x, y);
+      bx = x;
+      by = y;
+      return false;
+    });
   }
   *best_ncc = best;
   if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
   // Uniqueness over the other local maxima inside the ellipse: the region the prior allows.
   const float unique_below = config.uniqueness_ratio * best;
   if (peaks_overflow) {
-    for (std::int32_t y = in_y0; y <= in_y1; ++y) {
-      for (std::int32_t x = in_x0; x <= in_x1; ++x) {
-        if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) continue;
-        if (is_inside(x, y) && value(x, y) >= unique_below && is_local_max(x, y)) return MatchOutcome::kAmbiguous;
-      }
-    }
+    bool ambiguous = false;
+    for_each_candidate([&](std::int32_t x, std::int32_t y) {
+      if (std::abs(x - bx) <= 1 && std::abs(y - by) <= 1) return false;
+      ambiguous = value(x, y) >= unique_below && is_local_max(x, y);
+      return ambiguous;
+    });
+    if (ambiguous) return MatchOutcome::kAmbiguous;
   } else {
     for (std::int32_t k = 0; k < peak_count; ++k) {
       const Peak& peak = peaks[k];

@@ -59,16 +59,20 @@ struct WindowQuery {
   std::int32_t half_height_px = 2;
 };
 
-// Scratch floats a window search needs for a given half size: the gate flags of the box (the window
-// plus a one-pixel ring), the NCC of the box and ncc_box's working space.
+// The box of a window search (the window plus a one-pixel ring) is at most this wide and high: half
+// sizes up to 30 px. A larger window gives kNoRoom.
+inline constexpr std::int32_t kWindowSearchMaxBox = 64;
+
+// Scratch floats a window search needs for a given half size: the NCC of the box (the window plus a
+// one-pixel ring) and ncc_box's working space.
 constexpr std::size_t window_scratch_size(std::int32_t max_half_px) {
   const std::int32_t box = 2 * max_half_px + 3;
-  return static_cast<std::size_t>(box) * box + static_cast<std::size_t>(box) * ncc_box_out_stride(box) +
-         ncc_box_scratch_size(box, box);
+  return static_cast<std::size_t>(box) * ncc_box_out_stride(box) + ncc_box_scratch_size(box, box);
 }
 
 // covariance_px2 (may be null): the match's covariance from refine_subpixel, NaN when
-// subpixel_iterations is 0 (then the caller's fixed R applies).
+// subpixel_iterations is 0 (then the caller's fixed R applies). kNoRoom also for a box wider or higher
+// than kWindowSearchMaxBox.
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,
                            const MatchConfig& config, Span<float> scratch, Eigen::Vector2d* uv_px, float* best_ncc,
                            Eigen::Matrix2d* covariance_px2 = nullptr);

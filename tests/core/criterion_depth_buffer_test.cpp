@@ -24,7 +24,7 @@ void splat_wall(DepthBufferView& buffer, float x_wall, float half_size) {
 
 }  // namespace
 
-TEST_CASE("a disc behind a wall of discs is not visible; without the wall it is") {
+TEST_CASE("a disc behind a wall of discs is not visible, without the wall it is") {
   const PinholeIntrinsics k = test::test_intrinsics();
   REQUIRE(ok(g_buffer.configure(view_from({20.0, 0.0, 0.0}), k)));
   const Eigen::Vector3f X = Eigen::Vector3f::Zero();

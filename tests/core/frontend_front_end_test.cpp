@@ -140,7 +140,7 @@ TEST_CASE("tracking a third view matches most visible primitives and shrinks the
   CHECK(std::sqrt(sum_sq / updated) < 2.0);
 }
 
-TEST_CASE("a new primitive whose first re-observation fails is erased; a confirmed one only loses track") {
+TEST_CASE("a new primitive whose first re-observation fails is erased, a confirmed one only loses track") {
   Scene scene;
   const Viewpoint first = first_view();
   const Viewpoint second = second_view();
@@ -175,7 +175,7 @@ TEST_CASE("a new primitive whose first re-observation fails is erased; a confirm
   CHECK(g_front_end.stats().unconfirmed_erased < 0.1 * report.predicted_in_view);
 }
 
-TEST_CASE("track loss: a primitive rejected in K views in a row is erased; one rejected K-1 times then matched is kept") {
+TEST_CASE("track loss: a primitive rejected in K views in a row is erased, one rejected K-1 times then matched is kept") {
   Scene scene;
   const Viewpoint first = first_view();
   const Viewpoint second = second_view();

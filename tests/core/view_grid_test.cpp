@@ -48,7 +48,7 @@ TEST_CASE("every cell looks from its centre at the target with image up towards 
   }
 }
 
-TEST_CASE("cells within the margin of a primitive's xy are not free; set_blocked adds obstacles") {
+TEST_CASE("cells within the margin of a primitive's xy are not free, and set_blocked adds obstacles") {
   g_pool.clear();
   const Eigen::Matrix3d Sigma = 0.01 * Eigen::Matrix3d::Identity();
   // One primitive far below the grid at the centre of cell (3, 3) of the small grid.
@@ -84,7 +84,7 @@ TEST_CASE("cells within the margin of a primitive's xy are not free; set_blocked
   CHECK_FALSE(map.is_free({3, 3}));
 }
 
-TEST_CASE("costs are the inverse of F scaled to [0, 1]; the NBV is the free cell of largest F") {
+TEST_CASE("costs are the inverse of F scaled to [0, 1], and the NBV is the free cell of largest F") {
   make_model();
   REQUIRE(ok(g_grid.configure(small_geometry(), Eigen::Vector3d::Zero())));
   REQUIRE(ok(g_grid.update_free_mask(g_model, kDefaultSafetyMargin)));
