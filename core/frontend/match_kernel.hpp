@@ -1,6 +1,6 @@
 #pragma once
-// The matcher's inner loops, internal to core/frontend (see README.md, "Speed"): the box NCC and the
-// photometric subpixel fit. Written once (match_kernel_impl.hpp) with GCC/Clang vector extensions and
+// The matcher's inner loops, internal to core/frontend (see README.md, "Speed"): the box NCC, the
+// photometric subpixel fit and the photometric normal's pass over its patch. Written once (match_kernel_impl.hpp) with GCC/Clang vector extensions and
 // built twice, as core/criterion does: for the baseline ISA (match_kernel.cpp: SSE2 on x86-64, NEON on
 // aarch64) and, on x86-64 only, with AVX2 + FMA (match_kernel_avx2.cpp), chosen at run time. This header
 // is self-contained on purpose (plain pointers and numbers, no Eigen, no inline functions): the AVX2
@@ -70,9 +70,35 @@ using NccBoxFunction = void (*)(const Image& image, const Template& tmpl, const 
 using FitFunction = bool (*)(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
                              double stop_step_px, Fit* fit);
 
+// One Gauss-Newton pass of the photometric normal (photometric_normal.cpp): reference pixel y of the
+// centred 7x7 grid lands at p = u + M y in the image; r = I(p) - gain T(y) - offset and
+// J = [g, g . dM0 y, g . dM1 y, -T(y), -1], I bilinear and g its central differences one pixel apart.
+// Sums in float lanes (the pixels, template values and products of a 7x7 patch), returned in double.
+struct PhotometricPass {
+  // In: 2x2 matrices row-major.
+  double u_x;
+  double u_y;
+  double M[4];
+  double dM0[4];
+  double dM1[4];
+  double gain;
+  double offset;
+  // Out: J^T J (symmetric), J^T r, sum r^2, and per pixel (row ty, column tx < 7) gx, gy, the two tilt
+  // columns and r for the residual correlation model.
+  double JtJ[6][6];
+  double Jtr[6];
+  double sum_r2;
+  float rows[5][kSize][8];
+};
+
+// False when a pixel's bilinear cell and its ring leave the image (p outside [1, w - 2) x [1, h - 2))
+// or an input is not finite; *pass's outputs are then unspecified.
+using PhotometricFunction = bool (*)(const Image& image, const std::uint8_t* patch, PhotometricPass* pass);
+
 struct Functions {
   NccBoxFunction ncc_box;
   FitFunction refine;
+  PhotometricFunction photometric;
 };
 
 // The functions of a kernel (kAuto resolved, an unsupported one falls back to the baseline); ncc.cpp.
@@ -82,6 +108,7 @@ namespace baseline {
 void ncc_box(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);
 bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
             double stop_step_px, Fit* fit);
+bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass* pass);
 }  // namespace baseline
 
 #if defined(__x86_64__)
@@ -90,6 +117,7 @@ namespace avx2_fma {
 void ncc_box(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);
 bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32_t y, int iterations,
             double stop_step_px, Fit* fit);
+bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass* pass);
 }  // namespace avx2_fma
 #else
 #define VANTAGE_MATCH_HAS_AVX2_KERNEL 0

@@ -443,6 +443,156 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   return true;
 }
 
+bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass* pass) {
+  static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "four pixels are read as one little-endian word");
+  const double inputs[16] = {pass->u_x,    pass->u_y,    pass->M[0],   pass->M[1],   pass->M[2],  pass->M[3],
+                             pass->dM0[0], pass->dM0[1], pass->dM0[2], pass->dM0[3], pass->dM1[0], pass->dM1[1],
+                             pass->dM1[2], pass->dM1[3], pass->gain,   pass->offset};
+  for (const double v : inputs) {
+    if (!finite(v)) return false;
+  }
+  // The map is affine, so the grid's extremes are its corners: every p inside [1, w - 2) x [1, h - 2)
+  // (one more pixel each side for the central differences) when the four corners are.
+  constexpr int kRadius = kSize / 2;
+  for (int cy = -kRadius; cy <= kRadius; cy += 2 * kRadius) {
+    for (int cx = -kRadius; cx <= kRadius; cx += 2 * kRadius) {
+      const double px = pass->u_x + pass->M[0] * cx + pass->M[1] * cy;
+      const double py = pass->u_y + pass->M[2] * cx + pass->M[3] * cy;
+      if (!(px >= 1.0 && py >= 1.0 && px < image.width_px - 2.0 && py < image.height_px - 2.0)) return false;
+    }
+  }
+  // Positions relative to u's integer part: small floats, resolved to ~1e-6 px.
+  const double base_x = __builtin_floor(pass->u_x);
+  const double base_y = __builtin_floor(pass->u_y);
+  const std::int32_t base_xi = static_cast<std::int32_t>(base_x);
+  const std::int32_t base_yi = static_cast<std::int32_t>(base_y);
+  const float fx0 = static_cast<float>(pass->u_x - base_x);
+  const float fy0 = static_cast<float>(pass->u_y - base_y);
+  float m[4];
+  float d0[4];
+  float d1[4];
+  for (int k = 0; k < 4; ++k) {
+    m[k] = static_cast<float>(pass->M[k]);
+    d0[k] = static_cast<float>(pass->dM0[k]);
+    d1[k] = static_cast<float>(pass->dM1[k]);
+  }
+  // The template in rows of 8 lanes (the eighth lane 0 and out of every sum), the lanes' column offsets
+  // (the eighth repeats the seventh's, so it stays inside the image) and weights.
+  float t8[kSize][kGroup];
+  for (int ty = 0; ty < kSize; ++ty) {
+    for (int tx = 0; tx < kGroup; ++tx) t8[ty][tx] = tx < kSize ? static_cast<float>(patch[ty * kSize + tx]) : 0.0f;
+  }
+  const float column_offsets[kGroup] = {-3.0f, -2.0f, -1.0f, 0.0f, 1.0f, 2.0f, 3.0f, 3.0f};
+  const float weights[kGroup] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+  static_assert(kSize == 7 && kGroup == 8, "the lane tables above are for a 7x7 patch");
+  const vf gain = splat(static_cast<float>(pass->gain));
+  const vf offset = splat(static_cast<float>(pass->offset));
+  const vf one = splat(1.0f);
+  const vf half = splat(0.5f);
+  const vi min_xy = vi{} + 1;
+  const vi max_x = vi{} + (image.width_px - 3);
+  const vi max_y = vi{} + (image.height_px - 3);
+  // Accumulators: the products of [gx, gy, j2, j3, T] (upper triangle, 15), their sums (5), their
+  // products with r (5), r and r^2; padded to whole groups of 12 for the lane sums.
+  constexpr int kAcc = 36;
+  vf acc[kAcc];
+  for (int k = 0; k < kAcc; ++k) acc[k] = vf{};
+  for (int ty = 0; ty < kSize; ++ty) {
+    const float yy = static_cast<float>(ty - kRadius);
+    for (int lane = 0; lane < kGroup; lane += kWidth) {
+      const vf yx = load(column_offsets + lane);
+      const vf w = load(weights + lane);
+      const vf px = splat(fx0 + m[1] * yy) + splat(m[0]) * yx;
+      const vf py = splat(fy0 + m[3] * yy) + splat(m[2]) * yx;
+      // Floor (truncation, one less below an integer).
+      vi ix = __builtin_convertvector(px, vi);
+      ix += (px < __builtin_convertvector(ix, vf));
+      vi iy = __builtin_convertvector(py, vi);
+      iy += (py < __builtin_convertvector(iy, vf));
+      const vf fx = px - __builtin_convertvector(ix, vf);
+      const vf fy = py - __builtin_convertvector(iy, vf);
+      const vi x0 = ix + base_xi;
+      const vi y0 = iy + base_yi;
+      // The corner test above holds the real positions inside; this one the rounded cells (reads below).
+      const vi inside = (x0 >= min_xy) & (x0 <= max_x) & (y0 >= min_xy) & (y0 <= max_y);
+      std::int32_t inside_lanes[kWidth];
+      std::int32_t xs[kWidth];
+      std::int32_t ys[kWidth];
+      __builtin_memcpy(inside_lanes, &inside, sizeof inside_lanes);
+      __builtin_memcpy(xs, &x0, sizeof xs);
+      __builtin_memcpy(ys, &y0, sizeof ys);
+      bool all_inside = true;
+      for (int k = 0; k < kWidth; ++k) all_inside = all_inside && inside_lanes[k] != 0;
+      if (!all_inside) return false;
+      // Each lane's 4x4 neighbourhood (rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2): one 32-bit read
+      // per row.
+      std::uint32_t words[4][kWidth];
+      for (int k = 0; k < kWidth; ++k) {
+        const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(ys[k] - 1) * image.stride_bytes + (xs[k] - 1);
+        for (int r = 0; r < 4; ++r) __builtin_memcpy(&words[r][k], src + static_cast<std::ptrdiff_t>(r) * image.stride_bytes, 4);
+      }
+      vf pix[4][4];
+      for (int r = 0; r < 4; ++r) {
+        vi word;
+        __builtin_memcpy(&word, words[r], sizeof word);
+        for (int c = 0; c < 4; ++c) pix[r][c] = __builtin_convertvector((word >> (8 * c)) & 255, vf);
+      }
+      // The bilinear blends: the value and the four samples one pixel away share fx and fy.
+      const vf gx0 = one - fx;
+      const vf gy0 = one - fy;
+      auto blend = [&](int r, int c) { return gx0 * pix[r][c] + fx * pix[r][c + 1]; };
+      auto vertical = [&](vf top, vf bottom) { return gy0 * top + fy * bottom; };
+      const vf centre_1 = blend(1, 1);
+      const vf centre_2 = blend(2, 1);
+      const vf value = vertical(centre_1, centre_2);
+      const vf right = vertical(blend(1, 2), blend(2, 2));
+      const vf left = vertical(blend(1, 0), blend(2, 0));
+      const vf down = vertical(centre_2, blend(3, 1));
+      const vf up = vertical(blend(0, 1), centre_1);
+      const vf gx = half * (right - left) * w;
+      const vf gy = half * (down - up) * w;
+      const vf t = load(&t8[ty][lane]);
+      const vf r = (value - gain * t - offset) * w;
+      const vf j2 = gx * (splat(d0[0]) * yx + splat(d0[1] * yy)) + gy * (splat(d0[2]) * yx + splat(d0[3] * yy));
+      const vf j3 = gx * (splat(d1[0]) * yx + splat(d1[1] * yy)) + gy * (splat(d1[2]) * yx + splat(d1[3] * yy));
+      store(&pass->rows[0][ty][lane], gx);
+      store(&pass->rows[1][ty][lane], gy);
+      store(&pass->rows[2][ty][lane], j2);
+      store(&pass->rows[3][ty][lane], j3);
+      store(&pass->rows[4][ty][lane], r);
+      const vf j[5] = {gx, gy, j2, j3, t};
+      int a = 0;
+      for (int p = 0; p < 5; ++p) {
+        for (int q = p; q < 5; ++q) acc[a++] += j[p] * j[q];
+      }
+      for (int p = 0; p < 5; ++p) acc[a++] += j[p];
+      for (int p = 0; p < 5; ++p) acc[a++] += j[p] * r;
+      acc[a++] += r;
+      acc[a++] += r * r;
+    }
+  }
+  float sums[kAcc];
+  for (int k = 0; k < kAcc; k += 12) sum_lanes12(acc + k, sums + k);
+  // J = [gx, gy, j2, j3, -T, -1]: the signs of the last two columns.
+  const double sign[6] = {1.0, 1.0, 1.0, 1.0, -1.0, -1.0};
+  int a = 0;
+  for (int p = 0; p < 5; ++p) {
+    for (int q = p; q < 5; ++q, ++a) {
+      pass->JtJ[p][q] = sign[p] * sign[q] * static_cast<double>(sums[a]);
+      pass->JtJ[q][p] = pass->JtJ[p][q];
+    }
+  }
+  for (int p = 0; p < 5; ++p, ++a) {
+    pass->JtJ[p][5] = -sign[p] * static_cast<double>(sums[a]);
+    pass->JtJ[5][p] = pass->JtJ[p][5];
+  }
+  pass->JtJ[5][5] = kPixels;
+  for (int p = 0; p < 5; ++p, ++a) pass->Jtr[p] = sign[p] * static_cast<double>(sums[a]);
+  pass->Jtr[5] = -static_cast<double>(sums[a++]);
+  pass->sum_r2 = sums[a];
+  return true;
+}
+
 }  // namespace vantage::match_kernel::VANTAGE_MATCH_KERNEL_NS
 
 #undef VANTAGE_MATCH_INLINE

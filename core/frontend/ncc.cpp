@@ -217,11 +217,11 @@ Functions functions(MatchKernel kernel) {
 #if VANTAGE_MATCH_HAS_AVX2_KERNEL
   if ((kernel == MatchKernel::kAuto || kernel == MatchKernel::kAvx2Fma) &&
       match_kernel_supported(MatchKernel::kAvx2Fma)) {
-    return {avx2_fma::ncc_box, avx2_fma::refine};
+    return {avx2_fma::ncc_box, avx2_fma::refine, avx2_fma::photometric};
   }
 #endif
   (void)kernel;
-  return {baseline::ncc_box, baseline::refine};
+  return {baseline::ncc_box, baseline::refine, baseline::photometric};
 }
 
 }  // namespace match_kernel

@@ -54,39 +54,51 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
-// LDLT solves one column at a time (vector solves; a matrix right-hand side goes through Eigen's blocked
-// triangular solver, more code for a 6x6).
-Matrix6d solve_columns(const Eigen::LDLT<Matrix6d>& ldlt, const Matrix6d& rhs) {
-  Matrix6d out;
-  for (int j = 0; j < kParams; ++j) {
-    const Vector6d column = rhs.col(j);
-    out.col(j) = ldlt.solve(column);
+// Solves A X = B for the columns [first, first + count) of B (the other columns of *X are left as they
+// are), A symmetric 6x6: a plain Cholesky factorization when A is positive definite (the usual case),
+// else Eigen's LDLT with its positivity check, as before (it also takes semidefinite systems, giving
+// zero for the components of zero pivots). False when neither holds.
+[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Matrix6d& B, int first, int count, Matrix6d* X) {
+  double L[kParams][kParams] = {};
+  bool positive = true;
+  for (int j = 0; j < kParams && positive; ++j) {
+    double d = A(j, j);
+    for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+    if (!(d > 0.0) || !std::isfinite(d)) {
+      positive = false;
+      break;
+    }
+    L[j][j] = std::sqrt(d);
+    const double inverse = 1.0 / L[j][j];
+    for (int i = j + 1; i < kParams; ++i) {
+      double v = A(i, j);
+      for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+      L[i][j] = v * inverse;
+    }
   }
-  return out;
-}
-
-// The bilinear sample at (x, y) and the central differences of its samples one pixel away on each axis,
-// from one 4x4 neighbourhood: the five samples share their fractional parts, so the eight row blends
-// serve them all (12 pixel reads instead of 20). The same arithmetic as interpolating each of the five
-// on its own (to the last bit while x +- 1 and y +- 1 keep x's and y's binary exponent). The caller keeps x, y in
-// [1, size - 2).
-void sample_with_gradient(const GrayImageView& image, double x, double y, double* value, Eigen::Vector2d* g) {
-  const BilinearCell cell = bilinear_cell(x, y);
-  const std::int32_t x0 = cell.x0;
-  const std::int32_t y0 = cell.y0;
-  const double fx = cell.fx;
-  const double fy = cell.fy;
-  // Row r's blend of columns c and c + 1.
-  auto blend = [&](std::int32_t c, std::int32_t r) { return (1.0 - fx) * image.at(c, r) + fx * image.at(c + 1, r); };
-  auto vertical = [fy](double top, double bottom) { return (1.0 - fy) * top + fy * bottom; };
-  const double centre_0 = blend(x0, y0);
-  const double centre_1 = blend(x0, y0 + 1);
-  *value = vertical(centre_0, centre_1);
-  const double right = vertical(blend(x0 + 1, y0), blend(x0 + 1, y0 + 1));
-  const double left = vertical(blend(x0 - 1, y0), blend(x0 - 1, y0 + 1));
-  const double down = vertical(centre_1, blend(x0, y0 + 2));
-  const double up = vertical(blend(x0, y0 - 1), centre_0);
-  *g = Eigen::Vector2d(0.5 * (right - left), 0.5 * (down - up));
+  if (positive) {
+    for (int c = first; c < first + count; ++c) {
+      double y[kParams];
+      for (int i = 0; i < kParams; ++i) {
+        double v = B(i, c);
+        for (int k = 0; k < i; ++k) v -= L[i][k] * y[k];
+        y[i] = v / L[i][i];
+      }
+      for (int i = kParams - 1; i >= 0; --i) {
+        double v = y[i];
+        for (int k = i + 1; k < kParams; ++k) v -= L[k][i] * (*X)(k, c);
+        (*X)(i, c) = v / L[i][i];
+      }
+    }
+    return true;
+  }
+  const Eigen::LDLT<Matrix6d> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+  for (int c = first; c < first + count; ++c) {
+    const Vector6d column = B.col(c);
+    X->col(c) = ldlt.solve(column);
+  }
+  return true;
 }
 
 struct NormalEquations {
@@ -94,7 +106,7 @@ struct NormalEquations {
   Vector6d Jtr = Vector6d::Zero();
   double sum_r2 = 0.0;
   int count = 0;
-  PatchResiduals<kParams> rows;  // for the correlation model
+  match_kernel::PhotometricPass pass{};  // its per-pixel rows feed the correlation model
 };
 
 // The normal equations of the photometric fit at parameters theta (u, t, gain, offset). Not inlined:
@@ -115,42 +127,26 @@ struct NormalEquations {
     if (!ok(status)) return status;
     dM[j] = (M_step - M) / kStep;
   }
-  const Eigen::Vector2d u = theta.head<2>();
-  out->JtJ.setZero();
-  out->Jtr.setZero();
-  out->sum_r2 = 0.0;
-  out->count = 0;
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      const Eigen::Vector2d y(tx - kPatchRadius, ty - kPatchRadius);
-      const Eigen::Vector2d p = u + M * y;
-      // One more pixel each side for the central differences.
-      if (!(p.x() >= 1.0 && p.y() >= 1.0 && p.x() < image.width_px - 2.0 && p.y() < image.height_px - 2.0)) {
-        return Status::kOutsideImage;
-      }
-      double value;
-      Eigen::Vector2d g;
-      sample_with_gradient(image, p.x(), p.y(), &value, &g);
-      const double T = patch[static_cast<std::size_t>(ty * kPatchSize + tx)];
-      const double r = value - theta(4) * T - theta(5);
-      Vector6d J;
-      J << g.x(), g.y(), g.dot(dM[0] * y), g.dot(dM[1] * y), -T, -1.0;
-      // The upper triangle only (mirrored below): each entry the same products in the same order.
-      for (int col = 0; col < kParams; ++col) {
-        for (int row = 0; row <= col; ++row) out->JtJ(row, col) += J(row) * J(col);
-      }
-      out->Jtr += J * r;
-      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
-      out->rows.J[index] = J;
-      out->rows.r[index] = r;
-      out->rows.valid[index] = true;
-      out->sum_r2 += r * r;
-      ++out->count;
-    }
+  // The pixel loop (match_kernel.hpp: float lanes, one 32-bit read per row of each pixel's 4x4
+  // neighbourhood, the value and both central differences from one set of bilinear weights).
+  match_kernel::PhotometricPass& pass = out->pass;
+  pass.u_x = theta(0);
+  pass.u_y = theta(1);
+  for (int k = 0; k < 4; ++k) {
+    pass.M[k] = M(k / 2, k % 2);
+    pass.dM0[k] = dM[0](k / 2, k % 2);
+    pass.dM1[k] = dM[1](k / 2, k % 2);
   }
-  for (int col = 0; col < kParams; ++col) {
-    for (int row = col + 1; row < kParams; ++row) out->JtJ(row, col) = out->JtJ(col, row);
+  pass.gain = theta(4);
+  pass.offset = theta(5);
+  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+  if (!match_kernel::functions(q.kernel).photometric(view, patch.data(), &pass)) return Status::kOutsideImage;
+  for (int row = 0; row < kParams; ++row) {
+    for (int col = 0; col < kParams; ++col) out->JtJ(row, col) = pass.JtJ[row][col];
+    out->Jtr(row) = pass.Jtr[row];
   }
+  out->sum_r2 = pass.sum_r2;
+  out->count = kPatchPixels;
   return Status::kOk;
 }
 
@@ -162,9 +158,11 @@ double residual_variance(const NormalEquations& eq) {
 
 // The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
 [[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
-  const Eigen::LDLT<Matrix6d> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  *step = -ldlt.solve(gradient);
+  Matrix6d rhs = Matrix6d::Zero();
+  rhs.col(0) = gradient;
+  Matrix6d solution = Matrix6d::Zero();
+  if (!solve_spd(information, rhs, 0, 1, &solution)) return Status::kNotSpd;
+  *step = -solution.col(0);
   return step->allFinite() ? Status::kOk : Status::kNotSpd;
 }
 
@@ -174,23 +172,34 @@ double residual_variance(const NormalEquations& eq) {
 // H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one correlations.
 // White residuals give M = H. Its own function (not inlined): the 6x6 factorizations would otherwise
 // share one stack frame with the iteration's, beyond the core's frame limit under ASan.
-[[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, double prior_information,
+[[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, const std::array<std::uint8_t, kPatchPixels>& patch,
+                                            double prior_information,
                                             Eigen::Matrix2d* tilt_covariance) {
   const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
-  lag_one_correlations(eq.rows, &rho_x, &rho_y);
-  const Matrix6d meat = correlated_information_meat(eq.rows, rho_x, rho_y);
-  const Eigen::LDLT<Matrix6d> meat_ldlt(meat);
-  if (meat_ldlt.info() != Eigen::Success || !meat_ldlt.isPositive()) return Status::kNotSpd;
-  Matrix6d information = eq.JtJ * solve_columns(meat_ldlt, eq.JtJ) / sigma2;
+  PatchResiduals<kParams> rows;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int tx = 0; tx < kPatchSize; ++tx) {
+      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
+      const auto& pixel = eq.pass.rows;
+      rows.J[index] << pixel[0][ty][tx], pixel[1][ty][tx], pixel[2][ty][tx], pixel[3][ty][tx], -static_cast<double>(patch[index]), -1.0;
+      rows.r[index] = pixel[4][ty][tx];
+      rows.valid[index] = true;
+    }
+  }
+  lag_one_correlations(rows, &rho_x, &rho_y);
+  const Matrix6d meat = correlated_information_meat(rows, rho_x, rho_y);
+  Matrix6d meat_solved;
+  if (!solve_spd(meat, eq.JtJ, 0, kParams, &meat_solved)) return Status::kNotSpd;
+  Matrix6d information = eq.JtJ * meat_solved / sigma2;
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
-  const Eigen::LDLT<Matrix6d> ldlt(information);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return Status::kNotSpd;
-  const Matrix6d covariance = solve_columns(ldlt, Matrix6d::Identity());
-  if (!covariance.allFinite()) return Status::kNotSpd;
+  // Only the tilt block of the inverse: the columns of the two tilt parameters.
+  Matrix6d covariance = Matrix6d::Zero();
+  if (!solve_spd(information, Matrix6d::Identity(), 2, 2, &covariance)) return Status::kNotSpd;
+  if (!covariance.block<kParams, 2>(0, 2).allFinite()) return Status::kNotSpd;
   *tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
   return Status::kOk;
 }
@@ -243,7 +252,7 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   Eigen::Matrix2d tilt_covariance;
-  const Status covariance_status = tilt_covariance_of(eq, prior_information, &tilt_covariance);
+  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, &tilt_covariance);
   if (!ok(covariance_status)) return covariance_status;
   // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
   const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "core/common/status.hpp"
+#include "core/frontend/match_kernel.hpp"
 #include "core/frontend/ncc.hpp"
 #include "core/geometry/pinhole_intrinsics.hpp"
 #include "core/geometry/viewpoint.hpp"
@@ -32,6 +33,8 @@ struct PhotometricNormalQuery {
   // A primitive faces a camera when cos(normal, direction to the camera) exceeds this; the estimate
   // must face both views.
   double min_facing_cos = 0.05;
+  // Which build of the pixel loop runs (match_kernel.hpp; the builds agree up to float rounding).
+  MatchKernel kernel = MatchKernel::kAuto;
 };
 
 struct PhotometricNormalEstimate {

@@ -4,7 +4,9 @@
 
 #include <catch2/catch.hpp>
 
+#include "core/frontend/correlated_residuals.hpp"
 #include "core/frontend/match_covariance.hpp"
+#include "core/frontend/match_kernel.hpp"
 #include "core/frontend/patch_search.hpp"
 #include "core/frontend/patch_warp.hpp"
 #include "core/frontend/photometric_normal.hpp"
@@ -47,6 +49,23 @@ struct TwoViews {
   }
 };
 
+// The query for the plane point seen at reference pixel (sx, sy) and its patch, with the front end's
+// fallback prior: facing the creating camera (off the true normal by the ray's angle), variance 1/4.
+PhotometricNormalQuery facing_query(const TwoViews& scene, const GrayImageView& reference_image, int sx, int sy,
+                                    std::array<std::uint8_t, kPatchPixels>* patch) {
+  Eigen::Vector3d X;
+  REQUIRE(scene.plane.intersect(Eigen::Vector2d(sx, sy), scene.reference, scene.k, &X));
+  PhotometricNormalQuery query;
+  query.X_world = X;
+  query.normal_world = (scene.reference.position_world - X).normalized().cast<float>();
+  query.prior_tilt_variance = 0.25;
+  query.reference = scene.reference;
+  query.target = scene.target;
+  REQUIRE(ok(project(X, scene.target, scene.k, &query.uv_target_px)));
+  extract_patch(reference_image, sx, sy, patch);
+  return query;
+}
+
 // The angle (rad) between the estimate and the plane's normal, and its normalized squared tilt error.
 struct Error {
   double angle = 0.0;
@@ -69,18 +88,8 @@ TEST_CASE("the photometric normal recovers a plane's normal from a facing-camera
     const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
     for (int sy = 30; sy <= 90; sy += 10) {
       for (int sx = 40; sx <= 120; sx += 10) {
-        Eigen::Vector3d X;
-        REQUIRE(scene.plane.intersect(Eigen::Vector2d(sx, sy), scene.reference, scene.k, &X));
-        PhotometricNormalQuery query;
-        query.X_world = X;
-        // The front end's fallback: facing the creating camera (off the true normal by the ray's angle).
-        query.normal_world = (scene.reference.position_world - X).normalized().cast<float>();
-        query.prior_tilt_variance = 0.25;
-        query.reference = scene.reference;
-        query.target = scene.target;
-        REQUIRE(ok(project(X, scene.target, scene.k, &query.uv_target_px)));
         std::array<std::uint8_t, kPatchPixels> patch;
-        extract_patch(reference_image, sx, sy, &patch);
+        const PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
         ++tried;
         PhotometricNormalEstimate estimate;
         if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &estimate))) continue;
@@ -212,4 +221,152 @@ TEST_CASE("a match's covariance with correlated residuals follows the empirical 
   CHECK(nees_correlated / used < nees_white / used);
   CHECK(nees_correlated / used / 2.0 > 0.7);
   CHECK(nees_correlated / used / 2.0 < 1.25);
+}
+
+namespace {
+
+// Bilinear interpolation of the image at (x, y), one sample at a time (x, y inside [0, w - 1) x [0, h - 1)).
+double sample_bilinear(const GrayImageView& image, double x, double y) {
+  const BilinearCell c = bilinear_cell(x, y);
+  const double top = (1.0 - c.fx) * image.at(c.x0, c.y0) + c.fx * image.at(c.x0 + 1, c.y0);
+  const double bottom = (1.0 - c.fx) * image.at(c.x0, c.y0 + 1) + c.fx * image.at(c.x0 + 1, c.y0 + 1);
+  return (1.0 - c.fy) * top + c.fy * bottom;
+}
+
+// The photometric pass in plain double precision, pixel by pixel (sample_bilinear and its central
+// differences): the reference for the vectorized builds. False when a pixel leaves [1, w - 2) x [1, h - 2).
+bool reference_pass(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
+                    match_kernel::PhotometricPass* pass) {
+  const Eigen::Matrix2d M = Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>>(pass->M);
+  const Eigen::Matrix2d dM0 = Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>>(pass->dM0);
+  const Eigen::Matrix2d dM1 = Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>>(pass->dM1);
+  Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
+  pass->sum_r2 = 0.0;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    for (int tx = 0; tx < kPatchSize; ++tx) {
+      const Eigen::Vector2d y(tx - kPatchRadius, ty - kPatchRadius);
+      const Eigen::Vector2d p = Eigen::Vector2d(pass->u_x, pass->u_y) + M * y;
+      if (!(p.x() >= 1.0 && p.y() >= 1.0 && p.x() < image.width_px - 2.0 && p.y() < image.height_px - 2.0)) return false;
+      const double value = sample_bilinear(image, p.x(), p.y());
+      const Eigen::Vector2d g(0.5 * (sample_bilinear(image, p.x() + 1.0, p.y()) - sample_bilinear(image, p.x() - 1.0, p.y())),
+                              0.5 * (sample_bilinear(image, p.x(), p.y() + 1.0) - sample_bilinear(image, p.x(), p.y() - 1.0)));
+      const double T = patch[static_cast<std::size_t>(ty * kPatchSize + tx)];
+      const double r = value - pass->gain * T - pass->offset;
+      Eigen::Matrix<double, 6, 1> J;
+      J << g.x(), g.y(), g.dot(dM0 * y), g.dot(dM1 * y), -T, -1.0;
+      JtJ += J * J.transpose();
+      Jtr += J * r;
+      pass->sum_r2 += r * r;
+      for (int k = 0; k < 4; ++k) pass->rows[k][ty][tx] = static_cast<float>(J(k));
+      pass->rows[4][ty][tx] = static_cast<float>(r);
+    }
+  }
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) pass->JtJ[i][j] = JtJ(i, j);
+    pass->Jtr[i] = Jtr(i);
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("the photometric normal's pixel loop equals a plain double-precision one in every build") {
+  const TwoViews scene(0.5, 1.0, 3);
+  const GrayImageView image = vantage::test::view_of(scene.pixels[1], scene.k);
+  const GrayImageView reference_image = vantage::test::view_of(scene.pixels[0], scene.k);
+  std::uint64_t state = 12345;
+  auto uniform = [&state] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return (static_cast<double>(state >> 11) + 0.5) / 9007199254740992.0;
+  };
+  int compared = 0;
+  int outside = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    std::array<std::uint8_t, kPatchPixels> patch;
+    extract_patch(reference_image, 10 + static_cast<std::int32_t>(uniform() * (image.width_px - 20)),
+                  10 + static_cast<std::int32_t>(uniform() * (image.height_px - 20)), &patch);
+    match_kernel::PhotometricPass in{};
+    // Centres over the whole image, the borders included (some patches leave it), maps with shear and
+    // scale, negative positions relative to u's integer part.
+    in.u_x = 2.0 + uniform() * (image.width_px - 4.0);
+    in.u_y = 2.0 + uniform() * (image.height_px - 4.0);
+    const double angle = 0.6 * (uniform() - 0.5);
+    const double scale = 0.8 + 0.4 * uniform();
+    in.M[0] = scale * std::cos(angle) + 0.1 * (uniform() - 0.5);
+    in.M[1] = -scale * std::sin(angle);
+    in.M[2] = scale * std::sin(angle);
+    in.M[3] = scale * std::cos(angle) + 0.2 * (uniform() - 0.5);
+    for (int k = 0; k < 4; ++k) {
+      in.dM0[k] = uniform() - 0.5;
+      in.dM1[k] = uniform() - 0.5;
+    }
+    in.gain = 0.8 + 0.4 * uniform();
+    in.offset = 20.0 * (uniform() - 0.5);
+    match_kernel::PhotometricPass expected = in;
+    const bool expected_ok = reference_pass(image, patch, &expected);
+    outside += expected_ok ? 0 : 1;
+    for (const MatchKernel kernel : {MatchKernel::kBaseline, MatchKernel::kAvx2Fma}) {
+      if (!match_kernel_supported(kernel)) continue;
+      INFO("kernel " << to_string(kernel) << ", trial " << trial);
+      match_kernel::PhotometricPass got = in;
+      const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+      bool got_ok = false;
+      REQUIRE_NO_ALLOCATION(got_ok = match_kernel::functions(kernel).photometric(view, patch.data(), &got));
+      REQUIRE(got_ok == expected_ok);
+      if (!got_ok) continue;
+      ++compared;
+      // Float lanes against double: within a few float roundings of each sum's scale.
+      for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j < 6; ++j) {
+          const double scale_ij = std::sqrt(expected.JtJ[i][i] * expected.JtJ[j][j]);
+          CHECK(std::abs(got.JtJ[i][j] - expected.JtJ[i][j]) <= 1e-5 * scale_ij);
+        }
+        CHECK(std::abs(got.Jtr[i] - expected.Jtr[i]) <= 1e-5 * std::sqrt(expected.JtJ[i][i] * expected.sum_r2) + 1e-3);
+      }
+      CHECK(std::abs(got.sum_r2 - expected.sum_r2) <= 1e-5 * expected.sum_r2 + 1e-3);
+      for (int k = 0; k < 5; ++k) {
+        for (int ty = 0; ty < kPatchSize; ++ty) {
+          for (int tx = 0; tx < kPatchSize; ++tx) CHECK(std::abs(got.rows[k][ty][tx] - expected.rows[k][ty][tx]) < 2e-3);
+        }
+      }
+    }
+  }
+  CHECK(compared > 150);
+  CHECK(outside > 0);
+  // A non-finite input is refused.
+  std::array<std::uint8_t, kPatchPixels> patch{};
+  match_kernel::PhotometricPass bad{};
+  bad.u_x = std::nan("");
+  bad.u_y = 40.0;
+  bad.M[0] = bad.M[3] = 1.0;
+  const match_kernel::Image view{image.pixels, image.width_px, image.height_px, image.stride_bytes};
+  CHECK_FALSE(match_kernel::functions(MatchKernel::kBaseline).photometric(view, patch.data(), &bad));
+}
+
+TEST_CASE("the photometric normal's builds give the same estimate") {
+  if (!match_kernel_supported(MatchKernel::kAvx2Fma)) return;  // one build only on this machine
+  const TwoViews scene(0.6, 1.0, 1);
+  const GrayImageView reference_image = vantage::test::view_of(scene.pixels[0], scene.k);
+  const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
+  int compared = 0;
+  for (int sy = 30; sy <= 90; sy += 15) {
+    for (int sx = 40; sx <= 120; sx += 20) {
+      std::array<std::uint8_t, kPatchPixels> patch;
+      PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
+      PhotometricNormalEstimate estimates[2];
+      Status status[2];
+      for (int b = 0; b < 2; ++b) {
+        query.kernel = b == 0 ? MatchKernel::kBaseline : MatchKernel::kAvx2Fma;
+        status[b] = estimate_photometric_normal(target_image, patch, query, scene.k, &estimates[b]);
+      }
+      REQUIRE(status[0] == status[1]);
+      if (!ok(status[0])) continue;
+      ++compared;
+      CHECK((estimates[0].normal_world - estimates[1].normal_world).norm() < 1e-4f);
+      CHECK((estimates[0].tilt_covariance - estimates[1].tilt_covariance).norm() < 1e-3 * estimates[0].tilt_covariance.norm());
+      CHECK((estimates[0].uv_target_px - estimates[1].uv_target_px).norm() < 1e-4);
+    }
+  }
+  CHECK(compared > 10);
 }
