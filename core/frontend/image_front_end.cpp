@@ -377,6 +377,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     MatchOutcome outcome = MatchOutcome::kNoRoom;
     Eigen::Vector2d observed = predicted;
     Eigen::Matrix2d fit_covariance = Eigen::Matrix2d::Zero();
+    bool beyond_search = false;
     if (tmpl.valid_count >= kPatchPixels / 2) {
       const Eigen::Matrix2d S = H * p.Sigma_world * H.transpose() + config_.ekf.R_px2;
       WindowQuery query;
@@ -386,6 +387,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       const double half_w = std::ceil(3.0 * std::sqrt(S(0, 0)));
       const double half_h = std::ceil(3.0 * std::sqrt(S(1, 1)));
       const double cap = config_.max_search_half_window_px;
+      beyond_search = half_w > cap || half_h > cap;
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
       query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
       float best = 0.0f;
@@ -393,7 +395,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
-      reject_observation(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
     }
     // A poorly known normal that matters here (its warp covariance outweighs the match's own): estimate it
@@ -448,7 +450,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
-      reject_observation(i, centre_cell, pool, report);
+      reject_observation(i, centre_cell, pool, report, beyond_search);
     }
   }
 }
@@ -532,11 +534,11 @@ void ImageFrontEnd::correlate_fit_covariance(const GrayImageView& image, const N
 }
 
 void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
-                                       UpdateReport& report) {
+                                       UpdateReport& report, bool beyond_search) {
   Primitive& p = pool[i];
   p.flags |= primitive_flags::kLostTrack;
   if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
-  if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report);
+  if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
 
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {
@@ -553,15 +555,18 @@ void ImageFrontEnd::forget_cell(PrimitiveIndex i, std::size_t centre_cell) {
 }
 
 void ImageFrontEnd::count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
-                                    UpdateReport& report) {
+                                    UpdateReport& report, bool beyond_search) {
   const std::uint32_t flag_at = config_.unconsumed_after_rejections;
   const std::uint32_t erase_at = config_.max_rejected_in_a_row;
   if ((flag_at == 0 && erase_at == 0) || i >= kFrontEndMaxPrimitives) return;
   if (rejected_in_a_row_[i] < 255) ++rejected_in_a_row_[i];
-  if (flag_at > 0 && rejected_in_a_row_[i] >= flag_at) pool[i].flags |= primitive_flags::kUnconsumed;
-  if (erase_at == 0 || rejected_in_a_row_[i] < erase_at || !ok(pool.erase(i))) return;
+  const bool unconsumed = flag_at > 0 && rejected_in_a_row_[i] >= flag_at;
+  if (unconsumed) pool[i].flags |= primitive_flags::kUnconsumed;
+  const bool unsearchable = unconsumed && beyond_search && config_.erase_unsearchable;
+  if (!unsearchable && (erase_at == 0 || rejected_in_a_row_[i] < erase_at)) return;
+  if (!ok(pool.erase(i))) return;
   rejected_in_a_row_[i] = 0;
-  ++stats_.gated_erased;
+  ++(unsearchable ? stats_.unsearchable_erased : stats_.gated_erased);
   ++report.gated_erased;
   forget_cell(i, centre_cell);
 }

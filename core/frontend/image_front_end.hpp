@@ -118,6 +118,13 @@ struct FrontEndConfig {
   // update clears it; the criterion leaves it out of F and the planner out of U, since images do not
   // consume its uncertainty (core/planning/README.md, "Why coverage stalls"). 0: never, at most 255.
   std::uint32_t unconsumed_after_rejections = 3;
+  // Re-initialization of unsearchable primitives: an unconsumed primitive (above) whose predicted 3-sigma
+  // ellipse no longer fits the capped search window (max_search_half_window_px) at its latest rejection
+  // is erased, so augmentation re-spawns its region. The search cannot cover where its feature may be,
+  // so no later image can correct it (a "ghost" from a small-baseline spawn); a well-estimated primitive
+  // that misses matches (appearance, occlusion) keeps a small window and is only flagged.
+  // FrontEndStats::unsearchable_erased, UpdateReport::gated_erased. Needs unconsumed_after_rejections > 0.
+  bool erase_unsearchable = true;
   // Warp the reference patch when the plane-induced map differs from identity by more than this
   // (Frobenius norm of A - I).
   double warp_min_deviation = 0.05;
@@ -163,6 +170,7 @@ struct FrontEndStats {
   std::uint64_t seeds_rejected_triangulation = 0;
   std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
   std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
+  std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable
   EkfStats ekf;
 };
 
@@ -263,10 +271,13 @@ class ImageFrontEnd final : public MeasurementSource {
   void forget_cell(PrimitiveIndex i, std::size_t centre_cell);
   // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
   // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
-  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  // beyond_search: the prediction's 3-sigma ellipse was wider than the capped search window.
+  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
+                          bool beyond_search = false);
   // Counts one failed or gated observation of primitive i; flags it kUnconsumed at
   // unconsumed_after_rejections, erases it at max_rejected_in_a_row.
-  void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
+                       bool beyond_search);
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.

@@ -76,6 +76,9 @@ int run_cli(int argc, const char* const* argv) {
                  "leave a primitive out of the criterion after this many rejected observations in a row "
                  "(0: off, default 3)")
       ->check(CLI::Range(0u, 255u));
+  app.add_flag("--keep-unsearchable", options.keep_unsearchable,
+               "image front end: keep an unconsumed primitive whose 3-sigma ellipse exceeds the search window "
+               "(default: erase it so its region is spawned again)");
   app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
       ->check(CLI::Range(100u, 1000000u));
   std::size_t gt_samples = 50000;

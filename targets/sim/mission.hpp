@@ -34,6 +34,8 @@ struct MissionOptions {
   // kUnconsumed after this many rejected observations in a row (front end: failed or gated; oracle:
   // gated); 0: off. core/planning/README.md, "Why coverage stalls".
   std::uint32_t unconsumed_after = 3;
+  // Image front end: keep unconsumed primitives the search window cannot cover (FrontEndConfig::erase_unsearchable).
+  bool keep_unsearchable = false;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)

@@ -288,6 +288,44 @@ TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept) 
   CHECK(g_front_end.configure(scene.k, off) == Status::kInvalidArgument);
 }
 
+TEST_CASE("unsearchable: an unconsumed primitive whose 3-sigma ellipse exceeds the search window is erased") {
+  Scene scene;
+  const auto run = [&](bool erase_unsearchable, Eigen::Matrix3d Sigma_world) {
+    FrontEndConfig config = plane_config();
+    config.max_rejected_in_a_row = 0;  // no track loss: only the unsearchable rule erases
+    config.unconsumed_after_rejections = 3;
+    config.erase_unsearchable = erase_unsearchable;
+    initialize_on_plane(scene, first_view(), second_view(), config);
+    PrimitiveIndex ghost = kInvalidPrimitive;
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound() && ghost == kInvalidPrimitive; ++i) {
+      if (g_pool.is_alive(i) && std::abs(g_pool[i].X_world.y()) <= 2.0 && std::abs(g_pool[i].X_world.z()) <= 2.0) ghost = i;
+    }
+    REQUIRE(ghost != kInvalidPrimitive);
+    g_pool[ghost].observation_count = 1;  // confirmed: a failed match does not erase it as unconfirmed
+    g_pool[ghost].Sigma_world = Sigma_world;
+    spoil(g_pool[ghost]);
+    const Viewpoint view = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
+    const auto image = scene.render(view);
+    std::uint64_t erased_reported = 0;
+    for (std::uint32_t n = 0; n < config.unconsumed_after_rejections; ++n) {
+      REQUIRE(g_pool.is_alive(ghost));
+      REQUIRE(g_pool[ghost].creating_view <= 1u);
+      erased_reported += update_from(image, scene.k, view).gated_erased;
+    }
+    CHECK(g_front_end.stats().unsearchable_erased == erased_reported);
+    return g_pool.is_alive(ghost) && g_pool[ghost].creating_view <= 1u;  // the slot may hold a new primitive
+  };
+  // sigma 4 units at 40 units: about 170 px at 3 sigma, far beyond the 12 px cap.
+  const Eigen::Matrix3d ghost_sigma = 16.0 * Eigen::Matrix3d::Identity();
+  CHECK_FALSE(run(true, ghost_sigma));
+  CHECK(g_front_end.stats().unsearchable_erased == 1u);
+  CHECK(run(false, ghost_sigma));  // switched off: flagged, kept
+  CHECK(g_front_end.stats().unsearchable_erased == 0u);
+  // A well-estimated primitive that misses its matches (sigma 0.01) is only flagged.
+  CHECK(run(true, 1e-4 * Eigen::Matrix3d::Identity()));
+  CHECK(g_front_end.stats().unsearchable_erased == 0u);
+}
+
 TEST_CASE("surface no primitive covers spawns primitives there, matched against the previous image") {
   Scene scene;
   const Viewpoint first = first_view();
