@@ -22,7 +22,7 @@ struct UpdateReport {
   std::uint32_t spawned = 0;             // new primitives added (model augmentation)
   std::uint32_t merged = 0;              // primitives absorbed by neighbours (adaptive scale)
   std::uint32_t pool_full_rejections = 0;
-  std::uint32_t gated_erased = 0;        // primitives erased by the track-loss policy (K rejections in a row)
+  std::uint32_t gated_erased = 0;        // erased after rejections in a row (track loss, unsearchable ghosts)
 };
 
 class MeasurementSource {
