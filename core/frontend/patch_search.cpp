@@ -127,22 +127,19 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
     const Double2 dy2 = splat2(dy);
     const Double2 b_dy2 = splat2(b * dy);
     const Double2 e_dy2 = splat2(e * dy);
+    // The two pixels at columns xs: inside the gate, as bits 0 and 1.
+    auto in_gate = [&](Double2 xs) {
+      const Double2 dx = xs - px2;
+      return mask_bits(dx * (a2 * dx + b_dy2) + dy2 * (c2 * dx + e_dy2) <= gate2);
+    };
     Double2 xa = Double2{static_cast<double>(x0 + 1), static_cast<double>(x0 + 2)};
     std::uint64_t bits = 0;
     std::int32_t x = x0 + 1;
     for (; x + 2 < x1; x += 4) {
-      const Double2 dxa = xa - px2;
-      const Double2 dxb = (xa + splat2(2.0)) - px2;
-      const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
-      const Long2 inb = dxb * (a2 * dxb + b_dy2) + dy2 * (c2 * dxb + e_dy2) <= gate2;
-      bits |= static_cast<std::uint64_t>(mask_bits(ina) | (mask_bits(inb) << 2)) << (x - x0);
+      bits |= static_cast<std::uint64_t>(in_gate(xa) | (in_gate(xa + splat2(2.0)) << 2)) << (x - x0);
       xa += splat2(4.0);
     }
-    if (x < x1) {  // one or two candidates left: one pair
-      const Double2 dxa = xa - px2;
-      const Long2 ina = dxa * (a2 * dxa + b_dy2) + dy2 * (c2 * dxa + e_dy2) <= gate2;
-      bits |= static_cast<std::uint64_t>(mask_bits(ina)) << (x - x0);
-    }
+    if (x < x1) bits |= static_cast<std::uint64_t>(in_gate(xa)) << (x - x0);  // one or two left: one pair
     inside[y - y0] = bits & interior_bits;
   }
   if (cx > x0 && cx < x1 && cy > y0 && cy < y1) inside[cy - y0] |= std::uint64_t{1} << (cx - x0);

@@ -53,6 +53,9 @@ void spoil(Primitive& p) {
   for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
 }
 
+// Within 2 units of the plane's centre: in view, with room for the search, from every view below.
+bool near_centre(const Primitive& p) { return std::abs(p.X_world.y()) <= 2.0 && std::abs(p.X_world.z()) <= 2.0; }
+
 // One update of g_pool from view with its rendered image; REQUIREs success.
 UpdateReport update_from(const std::vector<std::uint8_t>& image, const PinholeIntrinsics& k, const Viewpoint& view) {
   UpdateReport report;
@@ -150,8 +153,8 @@ TEST_CASE("a new primitive whose first re-observation fails is erased, a confirm
   std::vector<PrimitiveIndex> unconfirmed;
   std::vector<PrimitiveIndex> confirmed;
   for (PrimitiveIndex i = 0; i < g_pool.index_bound() && confirmed.size() < 5; ++i) {
-    if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
-    for (int j = 0; j < kPatchPixels; ++j) g_pool[i].patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
+    if (!g_pool.is_alive(i) || !near_centre(g_pool[i])) continue;
+    spoil(g_pool[i]);
     if (unconfirmed.size() < 5) {
       unconfirmed.push_back(i);
     } else {
@@ -187,7 +190,7 @@ TEST_CASE("track loss: a primitive rejected in K views in a row is erased, one r
   // their match fail.
   std::vector<PrimitiveIndex> chosen;
   for (PrimitiveIndex i = 0; i < g_pool.index_bound() && chosen.size() < 2; ++i) {
-    if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
+    if (!g_pool.is_alive(i) || !near_centre(g_pool[i])) continue;
     g_pool[i].observation_count = 1;
     chosen.push_back(i);
   }
@@ -238,7 +241,7 @@ TEST_CASE("unconsumed: K rejected observations in a row flag a primitive (kept) 
   // A primitive near the image centre, confirmed (a failed match does not erase it).
   const auto central = []() {
     for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
-      if (!g_pool.is_alive(i) || std::abs(g_pool[i].X_world.y()) > 2.0 || std::abs(g_pool[i].X_world.z()) > 2.0) continue;
+      if (!g_pool.is_alive(i) || !near_centre(g_pool[i])) continue;
       g_pool[i].observation_count = 1;
       return i;
     }
@@ -298,7 +301,7 @@ TEST_CASE("unsearchable: an unconsumed primitive whose 3-sigma ellipse exceeds t
     initialize_on_plane(scene, first_view(), second_view(), config);
     PrimitiveIndex ghost = kInvalidPrimitive;
     for (PrimitiveIndex i = 0; i < g_pool.index_bound() && ghost == kInvalidPrimitive; ++i) {
-      if (g_pool.is_alive(i) && std::abs(g_pool[i].X_world.y()) <= 2.0 && std::abs(g_pool[i].X_world.z()) <= 2.0) ghost = i;
+      if (g_pool.is_alive(i) && near_centre(g_pool[i])) ghost = i;
     }
     REQUIRE(ghost != kInvalidPrimitive);
     g_pool[ghost].observation_count = 1;  // confirmed: a failed match does not erase it as unconfirmed
