@@ -11,11 +11,13 @@ namespace {
 // The pieces are separate, not inlined, functions: Eigen's temporaries in one frame outgrow the core's
 // 16 KB frame limit under ASan.
 
-// Innovation covariance S, its inverse and the gain K at a linearization H (consider form, see the
-// header). False when S is not positive definite.
+// Innovation covariance S, its inverse, the gain K and G = Sigma H^T - C B^T (X's covariance with the
+// innovation; K = G S^-1) at a linearization H (consider form, see the header). False when S is not
+// positive definite.
 [[gnu::noinline]] bool innovation_gain(const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                        const Eigen::Matrix<double, 3, 2>& CB, const Eigen::Matrix2d& R_total,
-                                       Eigen::Matrix2d* S_inv, Eigen::Matrix<double, 3, 2>* K) {
+                                       Eigen::Matrix2d* S_inv, Eigen::Matrix<double, 3, 2>* K,
+                                       Eigen::Matrix<double, 3, 2>* G) {
   const Eigen::Matrix<double, 3, 2> SigmaHt = Sigma * H.transpose();
   const Eigen::Matrix2d HCB = H * CB;
   const Eigen::Matrix2d HSH = H * SigmaHt;
@@ -27,7 +29,8 @@ namespace {
   if (!(s00 > 0.0) || !(det > 0.0)) return false;
   const double inv_det = 1.0 / det;
   *S_inv << s11 * inv_det, -s01 * inv_det, -s01 * inv_det, s00 * inv_det;
-  *K = (SigmaHt - CB) * *S_inv;
+  *G = SigmaHt - CB;
+  *K = *G * *S_inv;
   return true;
 }
 
@@ -61,7 +64,8 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
   return quadratic / det;
 }
 
-// Joseph-form covariance for gain K at H, valid for any K (consider form, see the header).
+// Joseph-form covariance for gain K at H, valid for any K (consider form, see the header): the fallback
+// when Sigma - K G^T cancels to a matrix that is not positive definite.
 [[gnu::noinline]] Eigen::Matrix3d joseph_covariance(const Eigen::Matrix<double, 3, 2>& K,
                                                    const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                                    const Eigen::Matrix<double, 3, 2>& CB,
@@ -112,6 +116,7 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   Eigen::Matrix<double, 2, 3> H;
   Eigen::Matrix2d S_inv;
   Eigen::Matrix<double, 3, 2> K;
+  Eigen::Matrix<double, 3, 2> G;
   for (int iteration = 0;; ++iteration) {
     if (iteration == 0 && at_prior != nullptr) {
       predicted = at_prior->predicted_px;
@@ -120,7 +125,7 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
       ++counts.rejected_inputs;
       return Status::kBehindCamera;
     }
-    if (!innovation_gain(H, Sigma, CB, R_total, &S_inv, &K)) {
+    if (!innovation_gain(H, Sigma, CB, R_total, &S_inv, &K, &G)) {
       ++counts.rejected_inputs;
       return Status::kNotSpd;
     }
@@ -138,11 +143,25 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
     if (iteration == 0) continue;
     if (mahalanobis_squared(Sigma, step) <= kStepSigmas * kStepSigmas) break;
   }
-  // H and K are those at the last linearization point.
-  const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
+  // H and K are those at the last linearization point, and K is that point's own gain, for which the
+  // Joseph form equals Sigma - K S K^T = Sigma - K G^T (expand it with K S = G): a sixth of the products.
+  // Its subtraction cancels where an observation pins a long axis down: its rounding, eps times the
+  // prior's variance, stays small against the result only while every axis keeps at least that
+  // fraction of its prior variance; otherwise (and when the result is not positive definite) the Joseph
+  // form, a sum of positive semidefinite terms without the consider part.
+  constexpr double kKeptFraction = 1e-6;  // rounding of the short form below ~1e-10 relative
+  const Eigen::Matrix3d shortened = Sigma - K * G.transpose();
+  Eigen::Matrix3d Sigma_new = 0.5 * (shortened + shortened.transpose());
+  bool positive_definite = Sigma_new(0, 0) >= kKeptFraction * Sigma(0, 0) &&
+                           Sigma_new(1, 1) >= kKeptFraction * Sigma(1, 1) &&
+                           Sigma_new(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3(Sigma_new);
+  if (!positive_definite) {
+    const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
+    Sigma_new = 0.5 * (joseph + joseph.transpose());
+    positive_definite = spd3(Sigma_new);
+  }
   const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
-  const Eigen::Matrix3d Sigma_new = 0.5 * (joseph + joseph.transpose());
-  if (!X.allFinite() || !cross.allFinite() || !spd3(Sigma_new)) {
+  if (!X.allFinite() || !cross.allFinite() || !positive_definite) {
     ++counts.rejected_inputs;
     return Status::kNotSpd;
   }
