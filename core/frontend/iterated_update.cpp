@@ -34,10 +34,17 @@ namespace {
   return true;
 }
 
+// x - x summed over the coefficients: zero when all are finite, NaN when any is NaN or infinite. The
+// inputs' checks as one vectorizable sum instead of a compare and branch per coefficient.
+template <typename Derived>
+double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
+  return (m.array() - m.array()).sum();
+}
+
 // Sylvester's criterion for a symmetric 3x3 (the leading minors are the LLT's pivots' products), with
 // the same finiteness and symmetry checks as is_spd, for a fraction of an LLT's cost.
 bool spd3(const Eigen::Matrix3d& M) {
-  if (!M.allFinite()) return false;
+  if (!(nonfinite_probe(M) == 0.0)) return false;
   const double scale = std::abs(M(0, 0)) + std::abs(M(1, 1)) + std::abs(M(2, 2));
   if (!(scale > 0.0)) return false;
   const double tolerance = 1e-9 * scale;
@@ -45,6 +52,14 @@ bool spd3(const Eigen::Matrix3d& M) {
       std::abs(M(1, 2) - M(2, 1)) > tolerance) {
     return false;
   }
+  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
+}
+
+// spd3 for a matrix symmetric by construction (0.5 (M + M^T)): the same answer without the symmetry
+// and scale tests (the scale is positive when M(0, 0) is).
+bool spd3_symmetrized(const Eigen::Matrix3d& M) {
+  if (!(nonfinite_probe(M) == 0.0)) return false;
   const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
   return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
 }
@@ -89,10 +104,12 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
                        int max_iterations, const ProjectionAtPrior* at_prior, EkfStats* stats) {
   EkfStats ignored;
   EkfStats& counts = stats != nullptr ? *stats : ignored;
-  if (!observation_px.allFinite() || !view.position_world.allFinite() || !view.R_world_cam.allFinite() ||
-      !primitive.X_world.allFinite() || !config.R_px2.allFinite() || !common->covariance_px2.allFinite() ||
-      !common->cross_covariance.allFinite() || !common->B.allFinite() ||
-      (at_prior != nullptr && (!at_prior->predicted_px.allFinite() || !at_prior->H.allFinite()))) {
+  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
+                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
+                 nonfinite_probe(common->covariance_px2) + nonfinite_probe(common->cross_covariance) +
+                 nonfinite_probe(common->B);
+  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
+  if (!(probe == 0.0)) {
     ++counts.rejected_inputs;
     return Status::kNonFiniteInput;
   }
@@ -154,11 +171,11 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   Eigen::Matrix3d Sigma_new = 0.5 * (shortened + shortened.transpose());
   bool positive_definite = Sigma_new(0, 0) >= kKeptFraction * Sigma(0, 0) &&
                            Sigma_new(1, 1) >= kKeptFraction * Sigma(1, 1) &&
-                           Sigma_new(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3(Sigma_new);
+                           Sigma_new(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3_symmetrized(Sigma_new);
   if (!positive_definite) {
     const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
     Sigma_new = 0.5 * (joseph + joseph.transpose());
-    positive_definite = spd3(Sigma_new);
+    positive_definite = spd3_symmetrized(Sigma_new);
   }
   const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
   if (!X.allFinite() || !cross.allFinite() || !positive_definite) {

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -404,4 +405,52 @@ TEST_CASE("the consider update's covariance is the Joseph form's, also where an 
     if (p.Sigma_world(1, 1) < 1e-8 * Sigma(1, 1) && p.Sigma_world(2, 2) < 1e-8 * Sigma(2, 2)) ++pinned;
   }
   CHECK(pinned == 50);
+}
+
+TEST_CASE("the consider update refuses an infinity or a NaN in any input and leaves the primitive as it was") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Viewpoint good_view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
+  Primitive good;
+  good.X_world = Eigen::Vector3d(0.1, 0.2, -0.1);
+  good.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
+  ProjectionAtPrior good_prior;
+  REQUIRE(ok(project_with_jacobian(good.X_world, good_view, k, &good_prior.predicted_px, &good_prior.H)));
+  const Eigen::Vector2d good_o = good_prior.predicted_px + Eigen::Vector2d(0.2, -0.1);
+  EkfConfig good_config;
+  good_config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
+  CommonObservationError good_common;
+  good_common.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+  for (const double bad : {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                           std::numeric_limits<double>::quiet_NaN()}) {
+    for (int input = 0; input < 11; ++input) {
+      Primitive p = good;
+      Viewpoint view = good_view;
+      ProjectionAtPrior prior = good_prior;
+      Eigen::Vector2d o = good_o;
+      EkfConfig config = good_config;
+      CommonObservationError common = good_common;
+      switch (input) {
+        case 0: o.y() = bad; break;
+        case 1: view.position_world.z() = bad; break;
+        case 2: view.R_world_cam(2, 1) = bad; break;
+        case 3: p.X_world.x() = bad; break;
+        case 4: config.R_px2(1, 0) = bad; break;
+        case 5: common.covariance_px2(1, 1) = bad; break;
+        case 6: common.cross_covariance(2, 1) = bad; break;
+        case 7: common.B(0, 1) = bad; break;
+        case 8: prior.predicted_px.x() = bad; break;
+        case 9: prior.H(1, 2) = bad; break;
+        default: p.Sigma_world(2, 2) = bad; break;
+      }
+      const Primitive before = p;
+      EkfStats stats;
+      Status status = Status::kOk;
+      REQUIRE_NO_ALLOCATION(status = iterated_consider_update(p, &common, o, view, k, config, 3, prior, &stats));
+      INFO("input " << input << " value " << bad);
+      CHECK(status == (input == 10 ? Status::kNotSpd : Status::kNonFiniteInput));
+      CHECK(stats.rejected_inputs == 1);
+      CHECK(p.Sigma_world.cwiseEqual(before.Sigma_world).count() + (input == 10 && bad != bad ? 1 : 0) == 9);
+      CHECK(p.observation_count == before.observation_count);
+    }
+  }
 }
