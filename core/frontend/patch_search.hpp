@@ -59,7 +59,8 @@ struct WindowQuery {
   std::int32_t half_height_px = 2;
   // The caller's prior puts the feature within about a pixel of predicted_px (README.md, "Speed"): the
   // photometric fit runs from the prediction first and is taken when it converges and its NCC reaches
-  // ncc_min; otherwise the window is searched as without it.
+  // ncc_min (*best_ncc is then that NCC, of the subpixel-aligned patch); otherwise the window is searched
+  // as without it.
   bool direct_fit = false;
 };
 
