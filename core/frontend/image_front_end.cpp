@@ -88,7 +88,8 @@ Status FrontEndConfig::validate() const {
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
-                           facing_normal_tilt_variance, photometric_normal_min_tilt_variance};
+                           facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
+                           direct_fit_max_px};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -106,6 +107,7 @@ Status FrontEndConfig::validate() const {
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
   }
+  if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
   if (!finite_positive(max_initial_sigma) || !(warp_min_deviation >= 0.0)) return Status::kInvalidArgument;
   if (!(min_facing_cos > -1.0 && min_facing_cos < 1.0)) return Status::kInvalidArgument;
@@ -368,18 +370,14 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     Eigen::Matrix2d B;
     reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
-    // What the normal's uncertainty does to the match through the warp (FrontEndConfig).
-    Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
-    if (config_.model_normal_uncertainty && have_creating) {
-      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
-    }
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;
     Eigen::Vector2d observed = predicted;
     Eigen::Matrix2d fit_covariance = Eigen::Matrix2d::Zero();
     bool beyond_search = false;
     if (tmpl.valid_count >= kPatchPixels / 2) {
-      const Eigen::Matrix2d S = H * p.Sigma_world * H.transpose() + config_.ekf.R_px2;
+      const Eigen::Matrix2d prior = H * p.Sigma_world * H.transpose();
+      const Eigen::Matrix2d S = prior + config_.ekf.R_px2;
       WindowQuery query;
       query.predicted_px = predicted;
       query.S_inv = S.inverse();
@@ -391,12 +389,23 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
       query.half_height_px = static_cast<std::int32_t>(half_h < 1.0 ? 1.0 : (half_h > cap ? cap : half_h));
       float best = 0.0f;
+      // A prior known to within about a pixel: the fit from the prediction, the window searched only if it
+      // fails (WindowQuery::direct_fit). The prior's largest 3-sigma semi-axis, without the fixed R that
+      // sizes the window.
+      const double half_trace = 0.5 * prior.trace();
+      const double largest = half_trace + std::sqrt(std::max(0.0, half_trace * half_trace - prior.determinant()));
+      query.direct_fit = 9.0 * largest <= config_.direct_fit_max_px * config_.direct_fit_max_px;
       outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
       reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
+    }
+    // What the normal's uncertainty does to the match through the warp (FrontEndConfig); only a match uses it.
+    Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
+    if (config_.model_normal_uncertainty && have_creating) {
+      warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
     }
     // A poorly known normal that matters here (its warp covariance outweighs the match's own): estimate it
     // from this view's appearance, then match with its warp.

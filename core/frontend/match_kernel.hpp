@@ -55,13 +55,18 @@ struct Box {
 };
 
 // Photometric fit around integer peak (x, y) (block of +-3 px of margin inside the image, valid_count
-// >= 8): in, dx and dy the start offset from (x, y); out, the converged offset and the shift covariance.
+// >= 8): in, dx and dy the start offset from (x, y); out, the converged offset and the shift covariance,
+// and ncc: the NCC of the template with the resampled image at the last step's linearization point (from
+// the fit's own sums, no extra pass: with r = I - alpha t - beta the centred sums of t I and I I follow
+// from those of t t, t r and r r).
 struct Fit {
   double dx;
   double dy;
   double cov_xx;
   double cov_xy;
   double cov_yy;
+  double ncc;
+  double last_step_px;  // out: the length of the last step taken (below stop_step_px when it converged)
 };
 
 using NccBoxFunction = void (*)(const Image& image, const Template& tmpl, const Box& box, float* scratch, float* out);

@@ -326,6 +326,8 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   double cov_xx = 1.0;
   double cov_xy = 0.0;
   double cov_yy = 1.0;
+  double ncc = -1.0;
+  double last_step = 0.0;
   for (int iteration = 0; iteration < iterations; ++iteration) {
     const int ix = static_cast<int>(__builtin_floor(dx));
     const int iy = static_cast<int>(__builtin_floor(dy));
@@ -426,6 +428,16 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
       cov_xx = variance * si00;
       cov_xy = variance * 0.5 * (si01 + si10);
       cov_yy = variance * si11;
+      // NCC at this linearization point: I = r + alpha t + beta over the valid pixels, so the centred sums
+      // are c_ti = c_tr + alpha c_tt and c_ii = c_rr + 2 alpha c_tr + alpha^2 c_tt.
+      const double b_r = sums[10];
+      const double c_tt = s_tt - s_t * s_t / s_1;
+      const double c_tr = static_cast<double>(sums[9]) - s_t * b_r / s_1;
+      const double c_rr = static_cast<double>(sums[11]) - b_r * b_r / s_1;
+      const double c_ti = c_tr + alpha * c_tt;
+      const double c_ii = c_rr + 2.0 * alpha * c_tr + alpha * alpha * c_tt;
+      ncc = c_ii > 0.01 * s_1 && c_tt > 0.0 ? c_ti / __builtin_sqrt(c_tt * c_ii) : -1.0;
+      last_step = step_norm;
     }
     dx += step_x;
     dy += step_y;
@@ -440,6 +452,8 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   fit->cov_xx = cov_xx;
   fit->cov_xy = cov_xy;
   fit->cov_yy = cov_yy;
+  fit->ncc = ncc;
+  fit->last_step_px = last_step;
   return true;
 }
 

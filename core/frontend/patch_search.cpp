@@ -54,17 +54,46 @@ match_kernel::Template kernel_template(const NccTemplate& tmpl) {
 }
 
 // refine_subpixel with a stop step and the chosen kernel's functions.
+// ncc (may be null): the fit's NCC at its last linearization point (match_kernel::Fit::ncc).
 bool refine_with(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y, int iterations,
                  double stop_step_px, const match_kernel::Functions& kernels, Eigen::Vector2d* uv_px,
-                 Eigen::Matrix2d* covariance_px2) {
+                 Eigen::Matrix2d* covariance_px2, double* ncc = nullptr, double* last_step_px = nullptr) {
   // The kernel (match_kernel_impl.hpp) needs the patch, +-1 px of shift, the bilinear cell and the
   // central-difference gradient inside the image: 3 px of margin.
   if (!patch_inside(image, x, y, 3) || tmpl.valid_count < 8) return false;
-  match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0};
+  match_kernel::Fit fit{uv_px->x() - x, uv_px->y() - y, 0.0, 0.0, 0.0, 0.0, 0.0};
   if (!(std::abs(fit.dx) < 1.0 && std::abs(fit.dy) < 1.0)) return false;
   if (!kernels.refine(kernel_image(image), kernel_template(tmpl), x, y, iterations, stop_step_px, &fit)) return false;
   *uv_px = Eigen::Vector2d(x + fit.dx, y + fit.dy);
   if (covariance_px2 != nullptr) *covariance_px2 << fit.cov_xx, fit.cov_xy, fit.cov_xy, fit.cov_yy;
+  if (ncc != nullptr) *ncc = fit.ncc;
+  if (last_step_px != nullptr) *last_step_px = fit.last_step_px;
+  return true;
+}
+
+// The direct path of a window search (WindowQuery::direct_fit): the photometric fit from the prediction
+// itself (Kanade-Lucas-Tomasi style), taken when it converges (its last step shorter than
+// subpixel_stop_step_px within subpixel_iterations) within a pixel of the prediction's nearest pixel and
+// its NCC there reaches ncc_min. False, outputs untouched, otherwise (the caller then searches the window).
+// No uniqueness test: inside a region smaller than the texture's correlation length the NCC surface has
+// one lobe, and a second peak a full lobe away lies outside what the prior allows (README.md, "Speed").
+bool fit_from_prediction(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& predicted_px,
+                         const MatchConfig& config, const match_kernel::Functions& kernels, Eigen::Vector2d* uv_px,
+                         float* best_ncc, Eigen::Matrix2d* covariance_px2) {
+  const std::int32_t x = round_to_int(predicted_px.x());
+  const std::int32_t y = round_to_int(predicted_px.y());
+  Eigen::Vector2d uv = predicted_px;
+  Eigen::Matrix2d covariance;
+  double ncc = -1.0;
+  double last_step = 0.0;
+  if (!refine_with(image, tmpl, x, y, config.subpixel_iterations, config.subpixel_stop_step_px, kernels, &uv,
+                   &covariance, &ncc, &last_step) ||
+      !(last_step < config.subpixel_stop_step_px) || !(ncc >= config.ncc_min)) {
+    return false;
+  }
+  *uv_px = uv;
+  *best_ncc = static_cast<float>(ncc);
+  if (covariance_px2 != nullptr) *covariance_px2 = covariance;
   return true;
 }
 
@@ -87,6 +116,11 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
                            Eigen::Matrix2d* covariance_px2) {
   if (!query.predicted_px.allFinite() || query.half_width_px < 1 || query.half_height_px < 1) {
     return MatchOutcome::kNoRoom;
+  }
+  if (query.direct_fit && config.subpixel_iterations > 0 &&
+      fit_from_prediction(image, tmpl, query.predicted_px, config, match_kernel::functions(config.kernel), uv_px,
+                          best_ncc, covariance_px2)) {
+    return MatchOutcome::kMatched;
   }
   const std::int32_t cx = round_to_int(query.predicted_px.x());
   const std::int32_t cy = round_to_int(query.predicted_px.y());

@@ -457,6 +457,11 @@ TEST_CASE("configure refuses cameras beyond the buffers and out-of-range setting
   bad = FrontEndConfig{};
   bad.seed_stride_px = 1;
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad = FrontEndConfig{};
+  bad.direct_fit_max_px = -0.5;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.direct_fit_max_px = std::nan("");
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
   CHECK_FALSE(g_front_end.configured());
 }
 

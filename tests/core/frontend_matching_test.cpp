@@ -5,6 +5,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <catch2/catch.hpp>
 
 #include "core/frontend/ncc.hpp"
@@ -191,6 +192,31 @@ NccTemplate corner_masked_template(const std::array<std::uint8_t, kPatchPixels>&
   return tmpl;
 }
 
+// The NCC of the template with the image resampled bilinearly at the template's pixels shifted to uv_px
+// (double precision, the valid pixels only).
+double resampled_ncc(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px) {
+  double sum_t = 0.0, sum_i = 0.0, sum_tt = 0.0, sum_ii = 0.0, sum_ti = 0.0;
+  for (int k = 0; k < kPatchPixels; ++k) {
+    if (tmpl.mask[k] <= 0.5f) continue;
+    const double px = uv_px.x() - kPatchRadius + k % kPatchSize;
+    const double py = uv_px.y() - kPatchRadius + k / kPatchSize;
+    const int ix = static_cast<int>(std::floor(px));
+    const int iy = static_cast<int>(std::floor(py));
+    const double fx = px - ix;
+    const double fy = py - iy;
+    const double i = (1 - fx) * (1 - fy) * image.at(ix, iy) + fx * (1 - fy) * image.at(ix + 1, iy) +
+                     (1 - fx) * fy * image.at(ix, iy + 1) + fx * fy * image.at(ix + 1, iy + 1);
+    const double t = tmpl.values[k];
+    sum_t += t;
+    sum_i += i;
+    sum_tt += t * t;
+    sum_ii += i * i;
+    sum_ti += t * i;
+  }
+  const double n = tmpl.valid_count;
+  return (sum_ti - sum_t * sum_i / n) / std::sqrt((sum_tt - sum_t * sum_t / n) * (sum_ii - sum_i * sum_i / n));
+}
+
 // The photometric fit written plainly (double precision, bilinear-resampled gradients, full 4x4 solve):
 // the reference the vectorized refine_subpixel must reproduce, position and covariance alike.
 bool reference_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
@@ -306,7 +332,7 @@ TEST_CASE("the box NCC equals the single-centre NCC at every centre, masked temp
   }
 }
 
-TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit, position and covariance") {
+TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit, position, covariance and NCC") {
   const std::int32_t w = 64;
   const std::int32_t h = 48;
   NoiseSource noise;
@@ -314,7 +340,9 @@ TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit
   const auto moved = noisy_image(w, h, 0.37, -0.21, 3.0, 0.9, 12.0, 2.0, noise);
   const GrayImageView ref_view{reference.data(), w, h, w};
   const GrayImageView moved_view{moved.data(), w, h, w};
+  const match_kernel::Image kernel_image{moved.data(), w, h, w};
   int compared = 0;
+  int ncc_compared = 0;
   for (std::int32_t y = 10; y < h - 10; y += 5) {
     for (std::int32_t x = 10; x < w - 10; x += 5) {
       std::array<std::uint8_t, kPatchPixels> patch{};
@@ -336,6 +364,17 @@ TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit
           INFO("kernel " << to_string(kernel));
           fast = start;
           REQUIRE_NO_ALLOCATION(fast_ok = refine_subpixel(moved_view, *tmpl, x, y, 3, &fast, &fast_cov, kernel));
+          // The fit's NCC from its own sums (match_kernel::Fit::ncc, at the last linearization point): with
+          // many steps and a tight stop that point is the converged position, where it must equal the
+          // resampled patch's NCC.
+          const match_kernel::Template t{tmpl->values.data(), tmpl->mask.data(), tmpl->norm, tmpl->valid_count};
+          match_kernel::Fit fit{start.x() - x, start.y() - y, 0.0, 0.0, 0.0, 0.0, 0.0};
+          if (match_kernel::functions(kernel).refine(kernel_image, t, x, y, 20, 1e-4, &fit) &&
+              fit.last_step_px < 1e-4) {
+            ++ncc_compared;
+            const double plain_ncc = resampled_ncc(moved_view, *tmpl, Eigen::Vector2d(x + fit.dx, y + fit.dy));
+            CHECK(fit.ncc == Approx(plain_ncc).margin(2e-4));
+          }
           REQUIRE(fast_ok == plain_ok);
           if (!fast_ok) continue;
           ++compared;
@@ -346,6 +385,7 @@ TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit
     }
   }
   CHECK(compared > 80);
+  CHECK(ncc_compared > 80);
 }
 
 // The tracker's EKF weighs each match by the fit's covariance, so it must describe the real spread: over
@@ -609,4 +649,146 @@ TEST_CASE("the window search agrees with the plain per-pixel search: gate, peak,
   CHECK(ambiguous > 10);
   CHECK(compared > 300);
   CHECK(matched > 50);
+}
+
+
+// WindowQuery::direct_fit (the tracker sets it when the prior's 3-sigma ellipse lies within a pixel of the
+// prediction) on random queries with such a prior (the window sized as the tracker does, with the fixed
+// R = 0.25 px^2), on a weak texture with 4 gray levels of noise so that the outcomes vary: wherever the full
+// search matches the direct path matches too, at the same position within the fit's own uncertainty; it
+// also matches where the full search finds no integer NCC peak above ncc_min but the subpixel-aligned
+// correlation is above it, and those extra matches are as accurate as the others.
+TEST_CASE("a window search's direct fit agrees with the full search where the prior is within a pixel") {
+  const std::int32_t w = 96;
+  const std::int32_t h = 72;
+  NoiseSource noise;
+  const Eigen::Vector2d shift(0.6, -0.4);
+  const auto reference = noisy_image(w, h, 0.0, 0.0, 2.5, 0.3, 60.0, 4.0, noise);
+  const auto moved = noisy_image(w, h, shift.x(), shift.y(), 2.5, 0.27, 70.0, 4.0, noise);
+  const GrayImageView ref_view{reference.data(), w, h, w};
+  const GrayImageView moved_view{moved.data(), w, h, w};
+  static std::array<float, window_scratch_size(6)> scratch{};
+  const Span<float> scratch_span(scratch.data(), scratch.size());
+  int trials = 0;
+  int both_matched = 0;
+  int extra = 0;
+  int same_position = 0;
+  double worst_mahalanobis2 = 0.0;
+  double direct_error2 = 0.0;
+  double full_error2 = 0.0;
+  double extra_error2 = 0.0;
+  for (int trial = 0; trial < 500; ++trial) {
+    const std::int32_t x = 8 + static_cast<std::int32_t>(noise.uniform() * (w - 16));
+    const std::int32_t y = 8 + static_cast<std::int32_t>(noise.uniform() * (h - 16));
+    NccTemplate tmpl;
+    if (!textured_template(ref_view, x, y, &tmpl)) continue;
+    // A prior of 1/3 px per axis or less (3 sigma within a pixel), tilted; the prediction drawn from it.
+    const double sx = (0.05 + 0.95 * noise.uniform()) / 3.0;
+    const double sy = (0.05 + 0.95 * noise.uniform()) / 3.0;
+    const double rho = 1.6 * noise.uniform() - 0.8;
+    Eigen::Matrix2d prior;
+    prior << sx * sx, rho * sx * sy, rho * sx * sy, sy * sy;
+    const Eigen::Matrix2d L = prior.llt().matrixL();
+    const Eigen::Vector2d truth = Eigen::Vector2d(x, y) + shift;
+    const Eigen::Matrix2d S = prior + 0.25 * Eigen::Matrix2d::Identity();
+    WindowQuery query;
+    query.predicted_px = truth + L * Eigen::Vector2d(noise.gaussian(), noise.gaussian());
+    query.S_inv = S.inverse();
+    query.half_width_px = static_cast<std::int32_t>(std::ceil(3.0 * std::sqrt(S(0, 0))));
+    query.half_height_px = static_cast<std::int32_t>(std::ceil(3.0 * std::sqrt(S(1, 1))));
+    Eigen::Vector2d full(0, 0);
+    Eigen::Vector2d direct(0, 0);
+    Eigen::Matrix2d full_cov = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d direct_cov = Eigen::Matrix2d::Zero();
+    float full_ncc = 0.0f;
+    float direct_ncc = 0.0f;
+    const MatchOutcome full_outcome = search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span, &full,
+                                                    &full_ncc, &full_cov);
+    query.direct_fit = true;
+    MatchOutcome direct_outcome = MatchOutcome::kNoRoom;
+    REQUIRE_NO_ALLOCATION(direct_outcome = search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span,
+                                                         &direct, &direct_ncc, &direct_cov));
+    ++trials;
+    INFO("trial " << trial << " at " << query.predicted_px.transpose());
+    if (full_outcome == MatchOutcome::kMatched) CHECK(direct_outcome == MatchOutcome::kMatched);
+    if (direct_outcome != MatchOutcome::kMatched) continue;
+    CHECK(direct_ncc >= MatchConfig{}.ncc_min);
+    if (full_outcome != MatchOutcome::kMatched) {
+      ++extra;
+      extra_error2 += (direct - truth).squaredNorm();
+      continue;
+    }
+    ++both_matched;
+    const Eigen::Vector2d difference = direct - full;
+    const Eigen::Matrix2d spread = full_cov + 0.05 * 0.05 * Eigen::Matrix2d::Identity();  // the front end's floor
+    worst_mahalanobis2 = std::max(worst_mahalanobis2, difference.dot(spread.inverse() * difference));
+    if (difference.norm() < 0.02) ++same_position;
+    direct_error2 += (direct - truth).squaredNorm();
+    full_error2 += (full - truth).squaredNorm();
+  }
+  const double direct_rms = std::sqrt(direct_error2 / std::max(both_matched, 1));
+  const double full_rms = std::sqrt(full_error2 / std::max(both_matched, 1));
+  const double extra_rms = std::sqrt(extra_error2 / std::max(extra, 1));
+  INFO("trials " << trials << ", both matched " << both_matched << " (same position within 0.02 px: " << same_position
+                 << ", worst squared Mahalanobis distance " << worst_mahalanobis2 << ", RMS error direct "
+                 << direct_rms << " px, full " << full_rms << " px), matched by the direct fit only " << extra
+                 << " (RMS error " << extra_rms << " px)");
+  CHECK(trials > 300);
+  CHECK(both_matched > 200);
+  CHECK(same_position >= 0.95 * both_matched);
+  CHECK(worst_mahalanobis2 < 1.0);
+  CHECK(direct_rms <= 1.05 * full_rms);
+  CHECK(extra_rms <= 1.5 * full_rms);
+}
+
+// The direct fit only reaches a feature within about a pixel of the prediction: one 3 px away is not
+// matched by it (the full search of a window that does not hold it finds no match either), and a flat
+// image gives no match.
+TEST_CASE("a window search's direct fit fails when the feature is outside its reach") {
+  const std::int32_t w = 96;
+  const std::int32_t h = 72;
+  NoiseSource noise;
+  const auto reference = noisy_image(w, h, 0.0, 0.0, 3.0, 1.0, 0.0, 1.0, noise);
+  const auto moved = noisy_image(w, h, 0.3, -0.2, 3.0, 1.0, 0.0, 1.0, noise);
+  const GrayImageView ref_view{reference.data(), w, h, w};
+  const GrayImageView moved_view{moved.data(), w, h, w};
+  static std::array<float, window_scratch_size(6)> scratch{};
+  const Span<float> scratch_span(scratch.data(), scratch.size());
+  int trials = 0;
+  int matched = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const std::int32_t x = 10 + static_cast<std::int32_t>(noise.uniform() * (w - 20));
+    const std::int32_t y = 10 + static_cast<std::int32_t>(noise.uniform() * (h - 20));
+    NccTemplate tmpl;
+    if (!textured_template(ref_view, x, y, &tmpl)) continue;
+    const double angle = 2.0 * 3.14159265358979323846 * noise.uniform();
+    WindowQuery query;
+    query.predicted_px = Eigen::Vector2d(x + 0.3 + 3.0 * std::cos(angle), y - 0.2 + 3.0 * std::sin(angle));
+    query.S_inv = Eigen::Matrix2d::Identity() / (0.3 * 0.3);
+    query.half_width_px = 1;
+    query.half_height_px = 1;
+    query.direct_fit = true;
+    Eigen::Vector2d found(0, 0);
+    float best = 0.0f;
+    const MatchOutcome outcome = search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span, &found, &best);
+    ++trials;
+    if (outcome == MatchOutcome::kMatched) {
+      ++matched;
+      CHECK((found - query.predicted_px).cwiseAbs().maxCoeff() < 1.5);  // never beyond the fit's reach
+    }
+  }
+  INFO("trials " << trials << ", matched " << matched);
+  CHECK(trials > 150);
+  CHECK(matched <= 0.02 * trials);
+
+  std::vector<std::uint8_t> flat(static_cast<std::size_t>(w) * h, 128);
+  const GrayImageView flat_view{flat.data(), w, h, w};
+  NccTemplate tmpl;
+  REQUIRE(textured_template(ref_view, 40, 30, &tmpl));
+  WindowQuery query;
+  query.predicted_px = Eigen::Vector2d(40.2, 30.1);
+  query.direct_fit = true;
+  Eigen::Vector2d found(0, 0);
+  float best = 0.0f;
+  CHECK(search_window(flat_view, tmpl, query, MatchConfig{}, scratch_span, &found, &best) != MatchOutcome::kMatched);
 }
