@@ -287,6 +287,19 @@ TEST_CASE("the consider update stays consistent under an error common to all obs
   CHECK(nees_plain > 3.5);  // averaging the common error away is over-confident
 }
 
+namespace {
+
+// A common error with a cross-covariance and a B that is not the identity: every consider term is used.
+CommonObservationError example_common_error() {
+  CommonObservationError common;
+  common.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+  common.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
+  common.B << 1.1, 0.1, -0.05, 0.9;
+  return common;
+}
+
+}  // namespace
+
 TEST_CASE("the consider update from the caller's projection at the prior equals the one that projects itself") {
   const PinholeIntrinsics k = vantage::test::small_intrinsics();
   const Viewpoint view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
@@ -300,10 +313,7 @@ TEST_CASE("the consider update from the caller's projection at the prior equals 
     own.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
     own.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
     Primitive given = own;
-    CommonObservationError common_own;
-    common_own.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
-    common_own.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
-    common_own.B << 1.1, 0.1, -0.05, 0.9;
+    CommonObservationError common_own = example_common_error();
     CommonObservationError common_given = common_own;
     ProjectionAtPrior at_prior;
     REQUIRE(ok(project_with_jacobian(own.X_world, view, k, &at_prior.predicted_px, &at_prior.H)));
@@ -366,10 +376,7 @@ TEST_CASE("the consider update's covariance is the Joseph form's, also where an 
     Primitive p;
     p.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
     p.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
-    CommonObservationError common;
-    common.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
-    common.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
-    common.B << 1.1, 0.1, -0.05, 0.9;
+    CommonObservationError common = example_common_error();
     config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
     const Eigen::Matrix3d Sigma = p.Sigma_world;
     const CommonObservationError prior_common = common;
