@@ -80,7 +80,8 @@ struct Views {
 
 // Renders the three images, configures the front end and initializes it from the first pair (which
 // records view 0, the creating view of every bench primitive). False with the benchmark skipped on error.
-bool set_up(benchmark::State& state, Views* views) {
+bool set_up(benchmark::State& state, Views* views,
+            const vantage::FrontEndConfig& config = vantage::FrontEndConfig{}) {
   vantage::sim::SceneConfig scene = vantage::sim::SceneConfig::paper_defaults();
   scene.shading.pixel_noise_sigma = 1.0;
   vantage::sim::TriangleMesh mesh;
@@ -103,7 +104,7 @@ bool set_up(benchmark::State& state, Views* views) {
     return false;
   }
   vantage::UpdateReport report;
-  if (!vantage::ok(g_front_end.configure(views->k, vantage::FrontEndConfig{})) ||
+  if (!vantage::ok(g_front_end.configure(views->k, config)) ||
       !vantage::ok(g_front_end.initialize(g_first.view().as_const(), views->first, g_second.view().as_const(),
                                           views->second, g_pool, &report))) {
     state.SkipWithError("front end setup failed");
@@ -180,6 +181,21 @@ void BM_FrontEndTrack20kVga(benchmark::State& state) {
   });
 }
 BENCHMARK(BM_FrontEndTrack20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
+
+// The same with the direct path on (FrontEndConfig::direct_fit_max_px = 1 px, off by default: it is
+// faster, and the missions measured less accurate with it; core/frontend/README.md, "Seventh round").
+void BM_FrontEndTrack20kVgaDirectFit(benchmark::State& state) {
+  Views views;
+  vantage::FrontEndConfig config;
+  config.direct_fit_max_px = 1.0;
+  if (!set_up(state, &views, config)) return;
+  run_updates(state, views, [&views] {
+    vantage::UpdateReport report;
+    return restart_with_bench_pool(views) &&
+           vantage::ok(g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report));
+  });
+}
+BENCHMARK(BM_FrontEndTrack20kVgaDirectFit)->Unit(benchmark::kMillisecond)->UseManualTime();
 
 // A whole frame: the same tracking plus model augmentation (epipolar search of the seeds no primitive
 // covers against the previous image, 1.5 degrees away). The front end is re-initialized and the pool

@@ -176,6 +176,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.depth_max = depth.max_m;
     fc.unconsumed_after_rejections = options.unconsumed_after;
     fc.erase_unsearchable = !options.keep_unsearchable;
+    fc.direct_fit_max_px = options.direct_fit_max_px;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
