@@ -99,17 +99,44 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
   return kept + K * (common.B * common.covariance_px2);
 }
 
+// Every input finite: one summed probe (noinline, like the helpers above, to keep consider_update's
+// frame small under ASan).
+[[gnu::noinline]] bool inputs_finite(const Primitive& primitive, const CommonObservationError& common,
+                                     const Eigen::Vector2d& observation_px, const Viewpoint& view,
+                                     const EkfConfig& config, const ProjectionAtPrior* at_prior) {
+  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
+                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
+                 nonfinite_probe(common.covariance_px2) + nonfinite_probe(common.cross_covariance) +
+                 nonfinite_probe(common.B);
+  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
+  return probe == 0.0;
+}
+
+// The posterior covariance for K, the last linearization point's own gain (G = K S): Sigma - K G^T, or
+// the Joseph form where that short form is not to be trusted (see consider_update). False when neither is
+// positive definite.
+[[gnu::noinline]] bool updated_covariance(const Eigen::Matrix<double, 3, 2>& K, const Eigen::Matrix<double, 3, 2>& G,
+                                          const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
+                                          const Eigen::Matrix<double, 3, 2>& CB, const Eigen::Matrix2d& R_total,
+                                          Eigen::Matrix3d* Sigma_new) {
+  constexpr double kKeptFraction = 1e-6;  // rounding of the short form below ~1e-10 relative
+  const Eigen::Matrix3d shortened = Sigma - K * G.transpose();
+  *Sigma_new = 0.5 * (shortened + shortened.transpose());
+  if ((*Sigma_new)(0, 0) >= kKeptFraction * Sigma(0, 0) && (*Sigma_new)(1, 1) >= kKeptFraction * Sigma(1, 1) &&
+      (*Sigma_new)(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3_symmetrized(*Sigma_new)) {
+    return true;
+  }
+  const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
+  *Sigma_new = 0.5 * (joseph + joseph.transpose());
+  return spd3_symmetrized(*Sigma_new);
+}
+
 Status consider_update(Primitive& primitive, CommonObservationError* common, const Eigen::Vector2d& observation_px,
                        const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
                        int max_iterations, const ProjectionAtPrior* at_prior, EkfStats* stats) {
   EkfStats ignored;
   EkfStats& counts = stats != nullptr ? *stats : ignored;
-  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
-                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
-                 nonfinite_probe(common->covariance_px2) + nonfinite_probe(common->cross_covariance) +
-                 nonfinite_probe(common->B);
-  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
-  if (!(probe == 0.0)) {
+  if (!inputs_finite(primitive, *common, observation_px, view, config, at_prior)) {
     ++counts.rejected_inputs;
     return Status::kNonFiniteInput;
   }
@@ -166,17 +193,8 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   // prior's variance, stays small against the result only while every axis keeps at least that
   // fraction of its prior variance; otherwise (and when the result is not positive definite) the Joseph
   // form, a sum of positive semidefinite terms without the consider part.
-  constexpr double kKeptFraction = 1e-6;  // rounding of the short form below ~1e-10 relative
-  const Eigen::Matrix3d shortened = Sigma - K * G.transpose();
-  Eigen::Matrix3d Sigma_new = 0.5 * (shortened + shortened.transpose());
-  bool positive_definite = Sigma_new(0, 0) >= kKeptFraction * Sigma(0, 0) &&
-                           Sigma_new(1, 1) >= kKeptFraction * Sigma(1, 1) &&
-                           Sigma_new(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3_symmetrized(Sigma_new);
-  if (!positive_definite) {
-    const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
-    Sigma_new = 0.5 * (joseph + joseph.transpose());
-    positive_definite = spd3_symmetrized(Sigma_new);
-  }
+  Eigen::Matrix3d Sigma_new;
+  const bool positive_definite = updated_covariance(K, G, H, Sigma, CB, R_total, &Sigma_new);
   const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
   if (!X.allFinite() || !cross.allFinite() || !positive_definite) {
     ++counts.rejected_inputs;
