@@ -11,11 +11,13 @@ namespace {
 // The pieces are separate, not inlined, functions: Eigen's temporaries in one frame outgrow the core's
 // 16 KB frame limit under ASan.
 
-// Innovation covariance S, its inverse and the gain K at a linearization H (consider form, see the
-// header). False when S is not positive definite.
+// Innovation covariance S, its inverse, the gain K and G = Sigma H^T - C B^T (X's covariance with the
+// innovation; K = G S^-1) at a linearization H (consider form, see the header). False when S is not
+// positive definite.
 [[gnu::noinline]] bool innovation_gain(const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                        const Eigen::Matrix<double, 3, 2>& CB, const Eigen::Matrix2d& R_total,
-                                       Eigen::Matrix2d* S_inv, Eigen::Matrix<double, 3, 2>* K) {
+                                       Eigen::Matrix2d* S_inv, Eigen::Matrix<double, 3, 2>* K,
+                                       Eigen::Matrix<double, 3, 2>* G) {
   const Eigen::Matrix<double, 3, 2> SigmaHt = Sigma * H.transpose();
   const Eigen::Matrix2d HCB = H * CB;
   const Eigen::Matrix2d HSH = H * SigmaHt;
@@ -27,14 +29,22 @@ namespace {
   if (!(s00 > 0.0) || !(det > 0.0)) return false;
   const double inv_det = 1.0 / det;
   *S_inv << s11 * inv_det, -s01 * inv_det, -s01 * inv_det, s00 * inv_det;
-  *K = (SigmaHt - CB) * *S_inv;
+  *G = SigmaHt - CB;
+  *K = *G * *S_inv;
   return true;
+}
+
+// x - x summed over the coefficients: zero when all are finite, NaN when any is NaN or infinite. The
+// inputs' checks as one vectorizable sum instead of a compare and branch per coefficient.
+template <typename Derived>
+double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
+  return (m.array() - m.array()).sum();
 }
 
 // Sylvester's criterion for a symmetric 3x3 (the leading minors are the LLT's pivots' products), with
 // the same finiteness and symmetry checks as is_spd, for a fraction of an LLT's cost.
 bool spd3(const Eigen::Matrix3d& M) {
-  if (!M.allFinite()) return false;
+  if (!(nonfinite_probe(M) == 0.0)) return false;
   const double scale = std::abs(M(0, 0)) + std::abs(M(1, 1)) + std::abs(M(2, 2));
   if (!(scale > 0.0)) return false;
   const double tolerance = 1e-9 * scale;
@@ -42,6 +52,14 @@ bool spd3(const Eigen::Matrix3d& M) {
       std::abs(M(1, 2) - M(2, 1)) > tolerance) {
     return false;
   }
+  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
+}
+
+// spd3 for a matrix symmetric by construction (0.5 (M + M^T)): the same answer without the symmetry
+// and scale tests (the scale is positive when M(0, 0) is).
+bool spd3_symmetrized(const Eigen::Matrix3d& M) {
+  if (!(nonfinite_probe(M) == 0.0)) return false;
   const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
   return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
 }
@@ -61,7 +79,8 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
   return quadratic / det;
 }
 
-// Joseph-form covariance for gain K at H, valid for any K (consider form, see the header).
+// Joseph-form covariance for gain K at H, valid for any K (consider form, see the header): the fallback
+// when Sigma - K G^T cancels to a matrix that is not positive definite.
 [[gnu::noinline]] Eigen::Matrix3d joseph_covariance(const Eigen::Matrix<double, 3, 2>& K,
                                                    const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                                    const Eigen::Matrix<double, 3, 2>& CB,
@@ -85,10 +104,12 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
                        int max_iterations, const ProjectionAtPrior* at_prior, EkfStats* stats) {
   EkfStats ignored;
   EkfStats& counts = stats != nullptr ? *stats : ignored;
-  if (!observation_px.allFinite() || !view.position_world.allFinite() || !view.R_world_cam.allFinite() ||
-      !primitive.X_world.allFinite() || !config.R_px2.allFinite() || !common->covariance_px2.allFinite() ||
-      !common->cross_covariance.allFinite() || !common->B.allFinite() ||
-      (at_prior != nullptr && (!at_prior->predicted_px.allFinite() || !at_prior->H.allFinite()))) {
+  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
+                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
+                 nonfinite_probe(common->covariance_px2) + nonfinite_probe(common->cross_covariance) +
+                 nonfinite_probe(common->B);
+  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
+  if (!(probe == 0.0)) {
     ++counts.rejected_inputs;
     return Status::kNonFiniteInput;
   }
@@ -112,6 +133,7 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   Eigen::Matrix<double, 2, 3> H;
   Eigen::Matrix2d S_inv;
   Eigen::Matrix<double, 3, 2> K;
+  Eigen::Matrix<double, 3, 2> G;
   for (int iteration = 0;; ++iteration) {
     if (iteration == 0 && at_prior != nullptr) {
       predicted = at_prior->predicted_px;
@@ -120,7 +142,7 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
       ++counts.rejected_inputs;
       return Status::kBehindCamera;
     }
-    if (!innovation_gain(H, Sigma, CB, R_total, &S_inv, &K)) {
+    if (!innovation_gain(H, Sigma, CB, R_total, &S_inv, &K, &G)) {
       ++counts.rejected_inputs;
       return Status::kNotSpd;
     }
@@ -138,11 +160,25 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
     if (iteration == 0) continue;
     if (mahalanobis_squared(Sigma, step) <= kStepSigmas * kStepSigmas) break;
   }
-  // H and K are those at the last linearization point.
-  const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
+  // H and K are those at the last linearization point, and K is that point's own gain, for which the
+  // Joseph form equals Sigma - K S K^T = Sigma - K G^T (expand it with K S = G): a sixth of the products.
+  // Its subtraction cancels where an observation pins a long axis down: its rounding, eps times the
+  // prior's variance, stays small against the result only while every axis keeps at least that
+  // fraction of its prior variance; otherwise (and when the result is not positive definite) the Joseph
+  // form, a sum of positive semidefinite terms without the consider part.
+  constexpr double kKeptFraction = 1e-6;  // rounding of the short form below ~1e-10 relative
+  const Eigen::Matrix3d shortened = Sigma - K * G.transpose();
+  Eigen::Matrix3d Sigma_new = 0.5 * (shortened + shortened.transpose());
+  bool positive_definite = Sigma_new(0, 0) >= kKeptFraction * Sigma(0, 0) &&
+                           Sigma_new(1, 1) >= kKeptFraction * Sigma(1, 1) &&
+                           Sigma_new(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3_symmetrized(Sigma_new);
+  if (!positive_definite) {
+    const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
+    Sigma_new = 0.5 * (joseph + joseph.transpose());
+    positive_definite = spd3_symmetrized(Sigma_new);
+  }
   const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
-  const Eigen::Matrix3d Sigma_new = 0.5 * (joseph + joseph.transpose());
-  if (!X.allFinite() || !cross.allFinite() || !spd3(Sigma_new)) {
+  if (!X.allFinite() || !cross.allFinite() || !positive_definite) {
     ++counts.rejected_inputs;
     return Status::kNotSpd;
   }

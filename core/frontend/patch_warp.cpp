@@ -67,6 +67,20 @@ Status plane_affine(const Eigen::Vector3d& X_world, const Eigen::Vector3f& norma
   return plane_affine_projected(X_world, normal_world, reference, target, intrinsics, A_ref_per_target, nullptr);
 }
 
+namespace {
+
+// {a[0], a[1], b[0], b[1]}: two 8-byte loads.
+inline Float4 pair_of_pairs(const float* a, const float* b) {
+  using Float2 = float __attribute__((vector_size(8)));
+  Float2 pa;
+  Float2 pb;
+  std::memcpy(&pa, a, sizeof pa);
+  std::memcpy(&pb, b, sizeof pb);
+  return __builtin_shufflevector(pa, pb, 0, 1, 2, 3);
+}
+
+}  // namespace
+
 void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
                          NccTemplate* out) {
   static_assert(kPatchSize == 7, "two four-lane groups per template row");
@@ -102,17 +116,16 @@ void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, co
       const Float4 fx = sx - __builtin_convertvector(x0, Float4);
       const Float4 fy = sy - __builtin_convertvector(y0, Float4);
       const Int4 base = y0 * kPatchSize + x0;
-      Float4 top_left;
-      Float4 top_right;
-      Float4 bottom_left;
-      Float4 bottom_right;
-      for (int lane = 0; lane < 4; ++lane) {
-        const float* s0 = &source[base[lane]];
-        top_left[lane] = s0[0];
-        top_right[lane] = s0[1];
-        bottom_left[lane] = s0[kPatchSize];
-        bottom_right[lane] = s0[kPatchSize + 1];
-      }
+      // Each lane's two horizontal neighbours are adjacent floats: one 8-byte load per lane and row,
+      // two lanes' pairs per vector, then the left and right values split by a shuffle.
+      const Float4 top01 = pair_of_pairs(&source[base[0]], &source[base[1]]);
+      const Float4 top23 = pair_of_pairs(&source[base[2]], &source[base[3]]);
+      const Float4 bottom01 = pair_of_pairs(&source[base[0] + kPatchSize], &source[base[1] + kPatchSize]);
+      const Float4 bottom23 = pair_of_pairs(&source[base[2] + kPatchSize], &source[base[3] + kPatchSize]);
+      const Float4 top_left = __builtin_shufflevector(top01, top23, 0, 2, 4, 6);
+      const Float4 top_right = __builtin_shufflevector(top01, top23, 1, 3, 5, 7);
+      const Float4 bottom_left = __builtin_shufflevector(bottom01, bottom23, 0, 2, 4, 6);
+      const Float4 bottom_right = __builtin_shufflevector(bottom01, bottom23, 1, 3, 5, 7);
       const Float4 top = top_left + fx * (top_right - top_left);
       const Float4 bottom = bottom_left + fx * (bottom_right - bottom_left);
       const int i = ty * kPatchSize + 4 * group;

@@ -1,4 +1,5 @@
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -286,6 +287,19 @@ TEST_CASE("the consider update stays consistent under an error common to all obs
   CHECK(nees_plain > 3.5);  // averaging the common error away is over-confident
 }
 
+namespace {
+
+// A common error with a cross-covariance and a B that is not the identity: every consider term is used.
+CommonObservationError example_common_error() {
+  CommonObservationError common;
+  common.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+  common.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
+  common.B << 1.1, 0.1, -0.05, 0.9;
+  return common;
+}
+
+}  // namespace
+
 TEST_CASE("the consider update from the caller's projection at the prior equals the one that projects itself") {
   const PinholeIntrinsics k = vantage::test::small_intrinsics();
   const Viewpoint view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
@@ -299,10 +313,7 @@ TEST_CASE("the consider update from the caller's projection at the prior equals 
     own.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
     own.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
     Primitive given = own;
-    CommonObservationError common_own;
-    common_own.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
-    common_own.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
-    common_own.B << 1.1, 0.1, -0.05, 0.9;
+    CommonObservationError common_own = example_common_error();
     CommonObservationError common_given = common_own;
     ProjectionAtPrior at_prior;
     REQUIRE(ok(project_with_jacobian(own.X_world, view, k, &at_prior.predicted_px, &at_prior.H)));
@@ -329,4 +340,124 @@ TEST_CASE("the consider update from the caller's projection at the prior equals 
   bad.H(0, 0) = std::nan("");
   CHECK(iterated_consider_update(p, &common, Eigen::Vector2d::Zero(), view, k, config, 3, bad, nullptr) ==
         Status::kNonFiniteInput);
+}
+
+namespace {
+
+// The consider update's Joseph form, (I - KH) Sigma (I - KH)^T + (I - KH) C B^T K^T + K B C^T (I - KH)^T +
+// K (B P_c B^T + R) K^T, with H and the gain K at the point X (the prior's Sigma), symmetrized.
+Eigen::Matrix3d joseph_at(const Eigen::Vector3d& X, const Eigen::Matrix3d& Sigma, const CommonObservationError& common,
+                          const Viewpoint& view, const PinholeIntrinsics& k, const Eigen::Matrix2d& R) {
+  Eigen::Vector2d predicted;
+  Eigen::Matrix<double, 2, 3> H;
+  REQUIRE(ok(project_with_jacobian(X, view, k, &predicted, &H)));
+  const Eigen::Matrix<double, 3, 2> CB = common.cross_covariance * common.B.transpose();
+  const Eigen::Matrix2d R_total = common.B * common.covariance_px2 * common.B.transpose() + R;
+  const Eigen::Matrix2d S = H * Sigma * H.transpose() - H * CB - (H * CB).transpose() + R_total;
+  const Eigen::Matrix<double, 3, 2> K = (Sigma * H.transpose() - CB) * S.inverse();
+  const Eigen::Matrix3d I_KH = Eigen::Matrix3d::Identity() - K * H;
+  const Eigen::Matrix3d mixed = I_KH * CB * K.transpose();
+  const Eigen::Matrix3d joseph =
+      I_KH * Sigma * I_KH.transpose() + K * R_total * K.transpose() + mixed + mixed.transpose();
+  return 0.5 * (joseph + joseph.transpose());
+}
+
+}  // namespace
+
+TEST_CASE("the consider update's covariance is the Joseph form's, also where an observation pins a long axis") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Viewpoint view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
+  std::mt19937 rng(23);
+  std::normal_distribution<double> z(0.0, 1.0);
+  EkfConfig config;
+  config.gate_chi2 = 1e30;
+  // Ordinary updates (Sigma - K S K^T): the Joseph form's covariance to rounding.
+  for (int trial = 0; trial < 50; ++trial) {
+    Primitive p;
+    p.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
+    p.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
+    CommonObservationError common = example_common_error();
+    config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
+    const Eigen::Matrix3d Sigma = p.Sigma_world;
+    const CommonObservationError prior_common = common;
+    Eigen::Vector2d o;
+    REQUIRE(ok(project(p.X_world, view, k, &o)));
+    o += Eigen::Vector2d(0.3 * z(rng), 0.3 * z(rng));
+    Status status = Status::kOk;
+    // One iteration: the EKF's step, H and K at its result.
+    REQUIRE_NO_ALLOCATION(status = iterated_consider_update(p, &common, o, view, k, config, 1, nullptr));
+    REQUIRE(ok(status));
+    const Eigen::Matrix3d expected = joseph_at(p.X_world, Sigma, prior_common, view, k, config.R_px2);
+    CHECK((p.Sigma_world - expected).norm() <= 1e-12 * expected.norm());
+  }
+  // A covariance far longer across the ray than the observation allows: Sigma - K S K^T subtracts two
+  // nearly equal numbers on those axes and leaves rounding noise (1e-6 relative here, of either sign);
+  // the update must still give the Joseph form's covariance.
+  int pinned = 0;
+  for (int trial = 0; trial < 50; ++trial) {
+    Primitive p;
+    p.X_world = Eigen::Vector3d(0.1 * z(rng), 0.1 * z(rng), 0.1 * z(rng));
+    p.Sigma_world = Eigen::Vector3d(1e-4, 1e4, 1e4).asDiagonal();
+    CommonObservationError common;
+    config.R_px2 = 1e-10 * Eigen::Matrix2d::Identity();
+    const Eigen::Matrix3d Sigma = p.Sigma_world;
+    Eigen::Vector2d o;
+    REQUIRE(ok(project(p.X_world, view, k, &o)));
+    const Status status = iterated_consider_update(p, &common, o, view, k, config, 1, nullptr);
+    REQUIRE(ok(status));
+    const Eigen::Matrix3d expected = joseph_at(p.X_world, Sigma, common, view, k, config.R_px2);
+    CHECK(p.Sigma_world.llt().info() == Eigen::Success);
+    CHECK((p.Sigma_world - expected).norm() <= 1e-9 * expected.norm());
+    // The observation holds the long axes: their variances shrink by more than 1e8.
+    if (p.Sigma_world(1, 1) < 1e-8 * Sigma(1, 1) && p.Sigma_world(2, 2) < 1e-8 * Sigma(2, 2)) ++pinned;
+  }
+  CHECK(pinned == 50);
+}
+
+TEST_CASE("the consider update refuses an infinity or a NaN in any input and leaves the primitive as it was") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Viewpoint good_view = vantage::test::looking_at_origin({30.0, 4.0, 2.0});
+  Primitive good;
+  good.X_world = Eigen::Vector3d(0.1, 0.2, -0.1);
+  good.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
+  ProjectionAtPrior good_prior;
+  REQUIRE(ok(project_with_jacobian(good.X_world, good_view, k, &good_prior.predicted_px, &good_prior.H)));
+  const Eigen::Vector2d good_o = good_prior.predicted_px + Eigen::Vector2d(0.2, -0.1);
+  EkfConfig good_config;
+  good_config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
+  CommonObservationError good_common;
+  good_common.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+  for (const double bad : {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                           std::numeric_limits<double>::quiet_NaN()}) {
+    for (int input = 0; input < 11; ++input) {
+      Primitive p = good;
+      Viewpoint view = good_view;
+      ProjectionAtPrior prior = good_prior;
+      Eigen::Vector2d o = good_o;
+      EkfConfig config = good_config;
+      CommonObservationError common = good_common;
+      switch (input) {
+        case 0: o.y() = bad; break;
+        case 1: view.position_world.z() = bad; break;
+        case 2: view.R_world_cam(2, 1) = bad; break;
+        case 3: p.X_world.x() = bad; break;
+        case 4: config.R_px2(1, 0) = bad; break;
+        case 5: common.covariance_px2(1, 1) = bad; break;
+        case 6: common.cross_covariance(2, 1) = bad; break;
+        case 7: common.B(0, 1) = bad; break;
+        case 8: prior.predicted_px.x() = bad; break;
+        case 9: prior.H(1, 2) = bad; break;
+        default: p.Sigma_world(2, 2) = bad; break;
+      }
+      const Primitive before = p;
+      EkfStats stats;
+      Status status = Status::kOk;
+      REQUIRE_NO_ALLOCATION(status = iterated_consider_update(p, &common, o, view, k, config, 3, prior, &stats));
+      INFO("input " << input << " value " << bad);
+      CHECK(status == (input == 10 ? Status::kNotSpd : Status::kNonFiniteInput));
+      CHECK(stats.rejected_inputs == 1);
+      CHECK(p.Sigma_world.cwiseEqual(before.Sigma_world).count() + (input == 10 && bad != bad ? 1 : 0) == 9);
+      CHECK(p.observation_count == before.observation_count);
+    }
+  }
 }
