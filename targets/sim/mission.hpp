@@ -36,8 +36,8 @@ struct MissionOptions {
   std::uint32_t unconsumed_after = 3;
   // Image front end: keep unconsumed primitives the search window cannot cover (FrontEndConfig::erase_unsearchable).
   bool keep_unsearchable = false;
-  // Image front end: FrontEndConfig::direct_fit_max_px (0: off, the default).
-  double direct_fit_max_px = 0.0;
+  // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
+  double direct_fit_max_px = 1.0;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
