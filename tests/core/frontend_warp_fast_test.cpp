@@ -1,6 +1,7 @@
 // The fast forms of the warp's normal-uncertainty terms against the direct ones they replace: the
 // analytic tilt derivatives of the plane-induced map against finite differences, and the moment form of
 // the warp covariance against the per-pixel sum.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <random>
@@ -170,7 +171,9 @@ TEST_CASE("the moment form of the warp covariance equals the per-pixel sum, mask
 TEST_CASE("the warped template equals plain per-pixel bilinear sampling of the patch under random maps") {
   // The warp's lanes gather each sample's neighbours as pairs; the reference samples one pixel at a time
   // with the same float arithmetic (offset A x, cell, fractions, then the two horizontal and one vertical
-  // interpolation), so the templates agree to the last bit.
+  // interpolation), so the templates agree to the last bit on x86-64; aarch64's compiler fuses a * b + c
+  // into one FMA in one of the two and not the other, which moves the last bits (a few 1e-5 gray levels),
+  // so the values and the norm are compared to within float rounding of that size.
   std::mt19937 rng(31);
   std::uniform_real_distribution<float> gray(0.0f, 255.0f);
   std::uniform_real_distribution<double> entry(-0.4, 0.4);
@@ -217,8 +220,12 @@ TEST_CASE("the warped template equals plain per-pixel bilinear sampling of the p
     if (expected.valid_count < kPatchPixels) ++masked_seen;
     CHECK(warped.valid_count == expected.valid_count);
     CHECK(warped.mask == expected.mask);
-    CHECK(warped.values == expected.values);
-    CHECK(warped.norm == expected.norm);
+    float worst = 0.0f;
+    for (std::size_t j = 0; j < kPatchPixels; ++j) {
+      worst = std::max(worst, std::abs(warped.values[j] - expected.values[j]));
+    }
+    CHECK(worst <= 1e-3f);
+    CHECK(std::abs(warped.norm - expected.norm) <= 1e-5f * expected.norm);
   }
   CHECK(masked_seen > 50);  // rotations push corners out of the stored patch
 }
