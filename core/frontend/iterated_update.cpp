@@ -41,10 +41,17 @@ double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
   return (m.array() - m.array()).sum();
 }
 
-// Sylvester's criterion for a symmetric 3x3 (the leading minors are the LLT's pivots' products), with
-// the same finiteness and symmetry checks as is_spd, for a fraction of an LLT's cost.
-bool spd3(const Eigen::Matrix3d& M) {
+// Sylvester's criterion for a matrix symmetric by construction (0.5 (M + M^T)): finite, and the leading
+// minors (the LLT's pivots' products) positive, for a fraction of an LLT's cost.
+bool spd3_symmetrized(const Eigen::Matrix3d& M) {
   if (!(nonfinite_probe(M) == 0.0)) return false;
+  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
+}
+
+// spd3_symmetrized for any 3x3, with is_spd's scale and symmetry checks first (a non-finite matrix fails
+// one of them or the probe).
+bool spd3(const Eigen::Matrix3d& M) {
   const double scale = std::abs(M(0, 0)) + std::abs(M(1, 1)) + std::abs(M(2, 2));
   if (!(scale > 0.0)) return false;
   const double tolerance = 1e-9 * scale;
@@ -52,16 +59,7 @@ bool spd3(const Eigen::Matrix3d& M) {
       std::abs(M(1, 2) - M(2, 1)) > tolerance) {
     return false;
   }
-  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
-  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
-}
-
-// spd3 for a matrix symmetric by construction (0.5 (M + M^T)): the same answer without the symmetry
-// and scale tests (the scale is positive when M(0, 0) is).
-bool spd3_symmetrized(const Eigen::Matrix3d& M) {
-  if (!(nonfinite_probe(M) == 0.0)) return false;
-  const double minor2 = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
-  return M(0, 0) > 0.0 && minor2 > 0.0 && M.determinant() > 0.0;
+  return spd3_symmetrized(M);
 }
 
 // v^T Sigma^-1 v for a symmetric positive definite 3x3 (spd3 holds): the adjugate's quadratic form over

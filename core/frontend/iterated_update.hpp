@@ -33,7 +33,8 @@ struct CommonObservationError {
 
 // Same contract as ekf_update (core/estimation/ekf.hpp): the Mahalanobis gate on the innovation at the
 // prior, the Joseph-form covariance (with H and its own gain at the final iterate, so computed as
-// Sigma - K S K^T; the Joseph products only when that cancels to a matrix that is not positive definite), the primitive unchanged on any error,
+// Sigma - K S K^T; the Joseph products only where that subtraction cancels: an axis keeps less than 1e-6
+// of its prior variance, or the result is not positive definite), the primitive unchanged on any error,
 // counts into stats. max_iterations >= 1 (1 is the plain EKF update).
 Status iterated_ekf_update(Primitive& primitive, const Eigen::Vector2d& observation_px, const Viewpoint& view,
                            const PinholeIntrinsics& intrinsics, const EkfConfig& config, int max_iterations,
