@@ -171,29 +171,25 @@ void run_updates(benchmark::State& state, const Views& views, Prepare prepare) {
 // the spawned primitives), and one update of the frame confirms the primitives, so every iteration
 // times the same second observation of them (the counters do not depend on how many iterations the
 // library chooses).
-void BM_FrontEndTrack20kVga(benchmark::State& state) {
+void track_with(benchmark::State& state, const vantage::FrontEndConfig& config) {
   Views views;
-  if (!set_up(state, &views)) return;
-  run_updates(state, views, [&views] {
-    vantage::UpdateReport report;
-    return restart_with_bench_pool(views) &&
-           vantage::ok(g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report));
-  });
-}
-BENCHMARK(BM_FrontEndTrack20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
-
-// The same with the window always searched (FrontEndConfig::direct_fit_max_px = 0; by default a prior
-// within a pixel is fitted from its prediction: core/frontend/README.md, "Seventh round").
-void BM_FrontEndTrack20kVgaFullSearch(benchmark::State& state) {
-  Views views;
-  vantage::FrontEndConfig config;
-  config.direct_fit_max_px = 0.0;
   if (!set_up(state, &views, config)) return;
   run_updates(state, views, [&views] {
     vantage::UpdateReport report;
     return restart_with_bench_pool(views) &&
            vantage::ok(g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report));
   });
+}
+
+void BM_FrontEndTrack20kVga(benchmark::State& state) { track_with(state, vantage::FrontEndConfig{}); }
+BENCHMARK(BM_FrontEndTrack20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
+
+// The same with the window always searched (FrontEndConfig::direct_fit_max_px = 0; by default a prior
+// within a pixel is fitted from its prediction: core/frontend/README.md, "Seventh round").
+void BM_FrontEndTrack20kVgaFullSearch(benchmark::State& state) {
+  vantage::FrontEndConfig config;
+  config.direct_fit_max_px = 0.0;
+  track_with(state, config);
 }
 BENCHMARK(BM_FrontEndTrack20kVgaFullSearch)->Unit(benchmark::kMillisecond)->UseManualTime();
 
