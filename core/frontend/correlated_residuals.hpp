@@ -109,4 +109,72 @@ Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>&
   return gram + cross + cross.transpose();
 }
 
+// correlated_information_meat when every pixel is in the fit (valid[] is not read; the photometric
+// normal's fit), P even: per entry the same products summed in the same pixel order, so the same bits
+// where the compiler contracts neither into FMAs (the x86-64 baseline; core test). The loops are turned
+// around: the neighbours' correlation-weighted rows first (as the general form builds them), then two
+// rows of J^T J and of the cross term at a time over all pixels, in pairs of columns (two-lane vectors),
+// so the twelve accumulators stay in registers (Eigen's outer products went through memory).
+// Not inlined: its 4.7 KB of pairs get their own stack frame (the core's frame limit, ASan).
+template <int P>
+[[gnu::noinline]] Eigen::Matrix<double, P, P> correlated_information_meat_dense(const PatchResiduals<P>& fit, double rho_x,
+                                                               double rho_y) {
+  static_assert(P % 2 == 0, "columns in pairs");
+  using Double2 = double __attribute__((vector_size(16)));
+  constexpr int kPairs = P / 2;
+  Double2 rows[kPatchPixels][kPairs];
+  Double2 neighbours[kPatchPixels][kPairs];
+  for (int i = 0; i < kPatchPixels; ++i) {
+    const double* row = fit.J[static_cast<std::size_t>(i)].data();
+    for (int k = 0; k < kPairs; ++k) rows[i][k] = Double2{row[2 * k], row[2 * k + 1]};
+  }
+  const double rho_xy = rho_x * rho_y;
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int x = 0; x < kPatchSize; ++x) {
+      const int i = y * kPatchSize + x;
+      Double2 sum[kPairs] = {};
+      auto add = [&](int j, double rho) {
+        const Double2 weight = Double2{rho, rho};
+        for (int k = 0; k < kPairs; ++k) sum[k] += weight * rows[j][k];
+      };
+      const bool right = x + 1 < kPatchSize;
+      const bool down = y + 1 < kPatchSize;
+      if (right) add(i + 1, rho_x);
+      if (down) add(i + kPatchSize, rho_y);
+      if (right && down) add(i + kPatchSize + 1, rho_xy);
+      if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+      for (int k = 0; k < kPairs; ++k) neighbours[i][k] = sum[k];
+    }
+  }
+  Eigen::Matrix<double, P, P> gram;
+  Eigen::Matrix<double, P, P> cross;
+  for (int r = 0; r < P; r += 2) {
+    Double2 gram0[kPairs] = {};
+    Double2 gram1[kPairs] = {};
+    Double2 cross0[kPairs] = {};
+    Double2 cross1[kPairs] = {};
+    for (int i = 0; i < kPatchPixels; ++i) {
+      const double a0 = fit.J[static_cast<std::size_t>(i)](r);
+      const double a1 = fit.J[static_cast<std::size_t>(i)](r + 1);
+      const Double2 b0 = Double2{a0, a0};
+      const Double2 b1 = Double2{a1, a1};
+      for (int k = 0; k < kPairs; ++k) {
+        gram0[k] += b0 * rows[i][k];
+        gram1[k] += b1 * rows[i][k];
+        cross0[k] += b0 * neighbours[i][k];
+        cross1[k] += b1 * neighbours[i][k];
+      }
+    }
+    for (int k = 0; k < kPairs; ++k) {
+      for (int lane = 0; lane < 2; ++lane) {
+        gram(r, 2 * k + lane) = gram0[k][lane];
+        gram(r + 1, 2 * k + lane) = gram1[k][lane];
+        cross(r, 2 * k + lane) = cross0[k][lane];
+        cross(r + 1, 2 * k + lane) = cross1[k][lane];
+      }
+    }
+  }
+  return gram + cross + cross.transpose();
+}
+
 }  // namespace vantage

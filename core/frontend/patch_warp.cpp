@@ -178,26 +178,48 @@ constexpr int kFrameRows = kPatchSize + 2;
 
 // No pixel masked: extrapolating the frame linearly (v_-1 = 2 v_0 - v_1) turns the one-sided
 // differences at the border into central ones, so g = (v_f - v_b) / 2 everywhere (computed as 2 g).
-void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
-  alignas(16) float v[kFrameRows * kFrameStride];
-  // Read but not written below: the lane past the frame (column 9) and the frame rows' corners (columns 0
-  // and 8); all multiplied by zero, they only need to be finite.
-  for (int y = 0; y < kFrameRows; ++y) v[y * kFrameStride + kPatchSize + 2] = 0.0f;
-  v[0] = v[kPatchSize + 1] = 0.0f;
-  v[(kFrameRows - 1) * kFrameStride] = v[(kFrameRows - 1) * kFrameStride + kPatchSize + 1] = 0.0f;
+void frame_extrapolated(const NccTemplate& tmpl, float* v) {
+  // Read but not written below: the lane past the frame (column 9) of the template's rows; the frame
+  // rows' right corners (column 8) are extrapolated with their rows (four lanes at a time). Both are
+  // multiplied by zero, they only need to be finite (the frame rows' column 0 and 9 are not read).
+  for (int y = 1; y <= kPatchSize; ++y) v[y * kFrameStride + kPatchSize + 2] = 0.0f;
   for (int ty = 0; ty < kPatchSize; ++ty) {
     float* row = &v[(ty + 1) * kFrameStride];
     std::memcpy(row + 1, &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)], kPatchSize * sizeof(float));
     row[0] = 2.0f * row[1] - row[2];
     row[kPatchSize + 1] = 2.0f * row[kPatchSize] - row[kPatchSize - 1];
   }
-  for (int x = 1; x <= kPatchSize; ++x) {
-    v[x] = 2.0f * v[kFrameStride + x] - v[2 * kFrameStride + x];
-    v[(kFrameRows - 1) * kFrameStride + x] =
-        2.0f * v[(kFrameRows - 2) * kFrameStride + x] - v[(kFrameRows - 3) * kFrameStride + x];
+  const Float4 two = splat4(2.0f);
+  for (int x = 1; x <= kPatchSize + 1; x += 4) {
+    store4(&v[x], two * load4(&v[kFrameStride + x]) - load4(&v[2 * kFrameStride + x]));
+    store4(&v[(kFrameRows - 1) * kFrameStride + x],
+           two * load4(&v[(kFrameRows - 2) * kFrameStride + x]) - load4(&v[(kFrameRows - 3) * kFrameStride + x]));
   }
-  // The eighth lane of each row (the frame column) must add nothing. Lane sums of g g^T per lane group
-  // (x = -3..0 and 1..4) and the row-weighted sum for My, in registers.
+}
+
+// The unmasked pass's lane sums: g g^T (xx, xy, yy) per lane group (x = -3..0 and 1..4) and the
+// row-weighted sums for My.
+struct UnmaskedLanes {
+  Float4 xx0, xy0, yy0, xx1, xy1, yy1, xx_y, xy_y, yy_y;
+};
+
+void moments_from_unmasked_lanes(const UnmaskedLanes& s, TemplateGradientMoments* out) {
+  const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
+  const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
+  constexpr double kQuarter = 0.25;  // (2 g)^2
+  const double G[3] = {kQuarter * sum_lanes(s.xx0 + s.xx1), kQuarter * sum_lanes(s.xy0 + s.xy1),
+                       kQuarter * sum_lanes(s.yy0 + s.yy1)};
+  const double Mx[3] = {kQuarter * sum_lanes(s.xx0 * x0 + s.xx1 * x1), kQuarter * sum_lanes(s.xy0 * x0 + s.xy1 * x1),
+                        kQuarter * sum_lanes(s.yy0 * x0 + s.yy1 * x1)};
+  const double My[3] = {kQuarter * sum_lanes(s.xx_y), kQuarter * sum_lanes(s.xy_y), kQuarter * sum_lanes(s.yy_y)};
+  out->G << G[0], G[1], G[1], G[2];
+  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
+  out->My << My[0], My[1], My[1], My[2];
+}
+
+// The pass over the framed template in two groups of four lanes per row.
+void unmasked_lanes4(const float* v, UnmaskedLanes* out) {
+  // The eighth lane of each row (the frame column) must add nothing.
   const Float4 last_lane_off = Float4{1.0f, 1.0f, 1.0f, 0.0f};
   Float4 xx0 = splat4(0.0f), xy0 = xx0, yy0 = xx0, xx1 = xx0, xy1 = xx0, yy1 = xx0;
   Float4 xx_y = xx0, xy_y = xx0, yy_y = xx0;
@@ -221,16 +243,62 @@ void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
     xy_y += y * (pxy0 + pxy1);
     yy_y += y * (pyy0 + pyy1);
   }
-  const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
-  const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
-  constexpr double kQuarter = 0.25;  // (2 g)^2
-  const double G[3] = {kQuarter * sum_lanes(xx0 + xx1), kQuarter * sum_lanes(xy0 + xy1), kQuarter * sum_lanes(yy0 + yy1)};
-  const double Mx[3] = {kQuarter * sum_lanes(xx0 * x0 + xx1 * x1), kQuarter * sum_lanes(xy0 * x0 + xy1 * x1),
-                        kQuarter * sum_lanes(yy0 * x0 + yy1 * x1)};
-  const double My[3] = {kQuarter * sum_lanes(xx_y), kQuarter * sum_lanes(xy_y), kQuarter * sum_lanes(yy_y)};
-  out->G << G[0], G[1], G[1], G[2];
-  out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
-  out->My << My[0], My[1], My[1], My[2];
+  *out = UnmaskedLanes{xx0, xy0, yy0, xx1, xy1, yy1, xx_y, xy_y, yy_y};
+}
+
+#if defined(__x86_64__)
+#define VANTAGE_MOMENTS_HAS_AVX 1
+// The same pass with a row's two groups as one 8-lane AVX vector: each lane does the four-lane form's
+// operations in its order (group 0's products with 1 are exact; AVX without FMA, so nothing is
+// contracted), so the same bits. Chosen at run time (match_kernel_supported).
+__attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLanes* out) {
+  // No lambdas: they would not inherit the target attribute.
+  using Float8 = float __attribute__((vector_size(32)));
+  const Float8 last_lane_off = Float8{1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+  Float8 xx = Float8{}, xy = xx, yy = xx;
+  Float4 xx_y = Float4{}, xy_y = xx_y, yy_y = xx_y;
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    const int c0 = (ty + 1) * kFrameStride + 1;
+    Float8 forward_x, back_x, forward_y, back_y;
+    __builtin_memcpy(&forward_x, &v[c0 + 1], sizeof forward_x);
+    __builtin_memcpy(&back_x, &v[c0 - 1], sizeof back_x);
+    __builtin_memcpy(&forward_y, &v[c0 + kFrameStride], sizeof forward_y);
+    __builtin_memcpy(&back_y, &v[c0 - kFrameStride], sizeof back_y);
+    const Float8 gx = (forward_x - back_x) * last_lane_off;
+    const Float8 gy = (forward_y - back_y) * last_lane_off;
+    const Float8 pxx = gx * gx, pxy = gx * gy, pyy = gy * gy;
+    xx += pxx;
+    xy += pxy;
+    yy += pyy;
+    const float y_value = static_cast<float>(ty - kPatchRadius);
+    const Float4 y = Float4{y_value, y_value, y_value, y_value};
+    xx_y += y * (__builtin_shufflevector(pxx, pxx, 0, 1, 2, 3) + __builtin_shufflevector(pxx, pxx, 4, 5, 6, 7));
+    xy_y += y * (__builtin_shufflevector(pxy, pxy, 0, 1, 2, 3) + __builtin_shufflevector(pxy, pxy, 4, 5, 6, 7));
+    yy_y += y * (__builtin_shufflevector(pyy, pyy, 0, 1, 2, 3) + __builtin_shufflevector(pyy, pyy, 4, 5, 6, 7));
+  }
+  *out = UnmaskedLanes{__builtin_shufflevector(xx, xx, 0, 1, 2, 3), __builtin_shufflevector(xy, xy, 0, 1, 2, 3),
+                       __builtin_shufflevector(yy, yy, 0, 1, 2, 3), __builtin_shufflevector(xx, xx, 4, 5, 6, 7),
+                       __builtin_shufflevector(xy, xy, 4, 5, 6, 7), __builtin_shufflevector(yy, yy, 4, 5, 6, 7),
+                       xx_y, xy_y, yy_y};
+}
+#else
+#define VANTAGE_MOMENTS_HAS_AVX 0
+#endif
+
+void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  alignas(32) float v[kFrameRows * kFrameStride];
+  frame_extrapolated(tmpl, v);
+  UnmaskedLanes lanes;
+#if VANTAGE_MOMENTS_HAS_AVX
+  if (match_kernel_supported(MatchKernel::kAvx2Fma)) {
+    unmasked_lanes8(v, &lanes);
+  } else {
+    unmasked_lanes4(v, &lanes);
+  }
+#else
+  unmasked_lanes4(v, &lanes);
+#endif
+  moments_from_unmasked_lanes(lanes, out);
 }
 
 }  // namespace

@@ -189,7 +189,7 @@ double residual_variance(const NormalEquations& eq) {
     }
   }
   lag_one_correlations(rows, &rho_x, &rho_y);
-  const Matrix6d meat = correlated_information_meat(rows, rho_x, rho_y);
+  const Matrix6d meat = correlated_information_meat_dense(rows, rho_x, rho_y);  // every pixel valid
   Matrix6d meat_solved;
   if (!solve_spd(meat, eq.JtJ, 0, kParams, &meat_solved)) return Status::kNotSpd;
   Matrix6d information = eq.JtJ * meat_solved / sigma2;
