@@ -250,7 +250,7 @@ void unmasked_lanes4(const float* v, UnmaskedLanes* out) {
 #define VANTAGE_MOMENTS_HAS_AVX 1
 // The same pass with a row's two groups as one 8-lane AVX vector: each lane does the four-lane form's
 // operations in its order (group 0's products with 1 are exact; AVX without FMA, so nothing is
-// contracted), so the same bits. Chosen at run time (match_kernel_supported).
+// contracted), so the same bits. Chosen at run time (the CPU's AVX2 flag).
 __attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLanes* out) {
   // No lambdas: they would not inherit the target attribute.
   using Float8 = float __attribute__((vector_size(32)));
@@ -285,48 +285,9 @@ __attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLan
 #define VANTAGE_MOMENTS_HAS_AVX 0
 #endif
 
-void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
-  alignas(32) float v[kFrameRows * kFrameStride];
-  frame_extrapolated(tmpl, v);
-  UnmaskedLanes lanes;
-#if VANTAGE_MOMENTS_HAS_AVX
-  if (match_kernel_supported(MatchKernel::kAvx2Fma)) {
-    unmasked_lanes8(v, &lanes);
-  } else {
-    unmasked_lanes4(v, &lanes);
-  }
-#else
-  unmasked_lanes4(v, &lanes);
-#endif
-  moments_from_unmasked_lanes(lanes, out);
-}
-
-}  // namespace
-
-void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
-  static_assert(kPatchSize == 7, "two four-lane groups per template row");
-  if (tmpl.valid_count == kPatchPixels) {
-    unmasked_moments(tmpl, out);
-    return;
-  }
-  // The template and its mask inside a frame of masked zeros, so every pixel has both neighbours on
-  // each axis and the one-sided rule is arithmetic: with m_f, m_b the neighbours' masks,
-  // g = (m_f (v_f - v) + m_b (v - v_b)) / (m_f + m_b), and a pixel counts when it is valid and
-  // m_f + m_b > 0 on both axes. The eighth lane of each row is the frame: masked, it adds nothing.
-  alignas(16) float v[kFrameRows * kFrameStride] = {};
-  alignas(16) float m[kFrameRows * kFrameStride] = {};
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    std::memcpy(&v[(ty + 1) * kFrameStride + 1], &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)],
-                kPatchSize * sizeof(float));
-    std::memcpy(&m[(ty + 1) * kFrameStride + 1], &tmpl.mask[static_cast<std::size_t>(ty * kPatchSize)],
-                kPatchSize * sizeof(float));
-  }
-  // Masks as exactly 0 or 1 (make_template writes them so; a hand-made template may not).
-  for (int i = 0; i < kFrameRows * kFrameStride; i += 4) {
-    store4(&m[i], load4(&m[i]) > splat4(0.5f) ? splat4(1.0f) : splat4(0.0f));
-  }
-  Float4 g_acc[2][3] = {};
-  Float4 q_acc[2][3] = {};
+// The masked pass over the framed template and mask (template_gradient_moments below): lane sums of
+// g g^T per lane group and their running sums over the rows.
+void masked_lanes4(const float* v, const float* m, Float4 (&g_acc)[2][3], Float4 (&q_acc)[2][3]) {
   const Float4 half = splat4(0.5f);
   const Float4 one = splat4(1.0f);
   const Float4 zero = splat4(0.0f);
@@ -353,6 +314,112 @@ void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments*
       for (int j = 0; j < 3; ++j) q_acc[group][j] += g_acc[group][j];
     }
   }
+}
+
+#if VANTAGE_MOMENTS_HAS_AVX
+// The same with a row's two groups as one 8-lane AVX vector (each lane the four-lane form's operations,
+// no FMA: the same bits).
+__attribute__((target("avx2"))) void masked_lanes8(const float* v, const float* m, Float4 (&g_acc)[2][3],
+                                                   Float4 (&q_acc)[2][3]) {
+  using Float8 = float __attribute__((vector_size(32)));
+  const Float8 half = Float8{} + 0.5f;
+  const Float8 one = Float8{} + 1.0f;
+  const Float8 one_and_half = Float8{} + 1.5f;
+  const Float8 zero = Float8{};
+  Float8 g[3] = {};
+  Float8 q[3] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    const int c = (ty + 1) * kFrameStride + 1;
+    Float8 vc, vxf, vxb, vyf, vyb, mc, mxf, mxb, myf, myb;
+    __builtin_memcpy(&vc, &v[c], sizeof vc);
+    __builtin_memcpy(&vxf, &v[c + 1], sizeof vxf);
+    __builtin_memcpy(&vxb, &v[c - 1], sizeof vxb);
+    __builtin_memcpy(&vyf, &v[c + kFrameStride], sizeof vyf);
+    __builtin_memcpy(&vyb, &v[c - kFrameStride], sizeof vyb);
+    __builtin_memcpy(&mc, &m[c], sizeof mc);
+    __builtin_memcpy(&mxf, &m[c + 1], sizeof mxf);
+    __builtin_memcpy(&mxb, &m[c - 1], sizeof mxb);
+    __builtin_memcpy(&myf, &m[c + kFrameStride], sizeof myf);
+    __builtin_memcpy(&myb, &m[c - kFrameStride], sizeof myb);
+    const Float8 nx = mxf + mxb;
+    const Float8 ny = myf + myb;
+    const Float8 keep = ((nx > half) & (ny > half)) ? mc : zero;
+    const Float8 scale_x = (nx > one_and_half ? half : one) * keep;
+    const Float8 scale_y = (ny > one_and_half ? half : one) * keep;
+    const Float8 gx = (mxf * (vxf - vc) + mxb * (vc - vxb)) * scale_x;
+    const Float8 gy = (myf * (vyf - vc) + myb * (vc - vyb)) * scale_y;
+    g[0] += gx * gx;
+    g[1] += gx * gy;
+    g[2] += gy * gy;
+    for (int j = 0; j < 3; ++j) q[j] += g[j];
+  }
+  for (int j = 0; j < 3; ++j) {
+    g_acc[0][j] = __builtin_shufflevector(g[j], g[j], 0, 1, 2, 3);
+    g_acc[1][j] = __builtin_shufflevector(g[j], g[j], 4, 5, 6, 7);
+    q_acc[0][j] = __builtin_shufflevector(q[j], q[j], 0, 1, 2, 3);
+    q_acc[1][j] = __builtin_shufflevector(q[j], q[j], 4, 5, 6, 7);
+  }
+}
+#endif
+
+void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, MatchKernel kernel) {
+  alignas(32) float v[kFrameRows * kFrameStride];
+  frame_extrapolated(tmpl, v);
+  UnmaskedLanes lanes;
+#if VANTAGE_MOMENTS_HAS_AVX
+  // libgcc's CPU model, initialized by its constructor before main (match_kernel_supported's explicit
+  // initialization and kernel mapping cost as much as the 8-lane pass saves on the unmasked path).
+  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
+    unmasked_lanes8(v, &lanes);
+  } else {
+    unmasked_lanes4(v, &lanes);
+  }
+#else
+  (void)kernel;
+  unmasked_lanes4(v, &lanes);
+#endif
+  moments_from_unmasked_lanes(lanes, out);
+}
+
+}  // namespace
+
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out) {
+  template_gradient_moments(tmpl, out, MatchKernel::kAuto);
+}
+
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, MatchKernel kernel) {
+  static_assert(kPatchSize == 7, "two four-lane groups per template row");
+  if (tmpl.valid_count == kPatchPixels) {
+    unmasked_moments(tmpl, out, kernel);
+    return;
+  }
+  // The template and its mask inside a frame of masked zeros, so every pixel has both neighbours on
+  // each axis and the one-sided rule is arithmetic: with m_f, m_b the neighbours' masks,
+  // g = (m_f (v_f - v) + m_b (v - v_b)) / (m_f + m_b), and a pixel counts when it is valid and
+  // m_f + m_b > 0 on both axes. The eighth lane of each row is the frame: masked, it adds nothing.
+  alignas(16) float v[kFrameRows * kFrameStride] = {};
+  alignas(16) float m[kFrameRows * kFrameStride] = {};
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    std::memcpy(&v[(ty + 1) * kFrameStride + 1], &tmpl.values[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+    std::memcpy(&m[(ty + 1) * kFrameStride + 1], &tmpl.mask[static_cast<std::size_t>(ty * kPatchSize)],
+                kPatchSize * sizeof(float));
+  }
+  // Masks as exactly 0 or 1 (make_template writes them so; a hand-made template may not).
+  for (int i = 0; i < kFrameRows * kFrameStride; i += 4) {
+    store4(&m[i], load4(&m[i]) > splat4(0.5f) ? splat4(1.0f) : splat4(0.0f));
+  }
+  Float4 g_acc[2][3] = {};
+  Float4 q_acc[2][3] = {};
+#if VANTAGE_MOMENTS_HAS_AVX
+  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
+    masked_lanes8(v, m, g_acc, q_acc);
+  } else {
+    masked_lanes4(v, m, g_acc, q_acc);
+  }
+#else
+  masked_lanes4(v, m, g_acc, q_acc);
+#endif
   moments_from_lanes(g_acc, q_acc, 1.0, out);
 }
 

@@ -64,6 +64,9 @@ struct TemplateGradientMoments {
   Eigen::Matrix2d My = Eigen::Matrix2d::Zero();
 };
 void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out);
+// The same with a chosen build of the unmasked pass: kBaseline four lanes, otherwise one 8-lane AVX
+// vector per row where the CPU has AVX2 (x86-64). Both builds give the same bits (no FMA in either).
+void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, MatchKernel kernel);
 
 // warp_shift_covariance from the template's moments: a handful of 2x2 products per call.
 Eigen::Matrix2d warp_shift_covariance(const TemplateGradientMoments& moments, const Eigen::Matrix2d& A_ref_per_target,

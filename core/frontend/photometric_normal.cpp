@@ -42,10 +42,9 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   if (!(n.dot(views.to_reference) > q.min_facing_cos) || !(n.dot(views.to_target) > q.min_facing_cos)) {
     return Status::kBehindCamera;
   }
-  // plane_affine's checks and map with the Jacobians computed once.
+  // plane_affine's map with the Jacobians computed once; plane_affine_from_jacobians checks the float
+  // normal's length (a non-finite component makes it non-finite).
   const Eigen::Vector3f n_float = n.cast<float>();
-  const Eigen::Vector3d n_checked = n_float.cast<double>();
-  if (!n_checked.allFinite() || std::abs(n_checked.norm() - 1.0) > 1e-3) return Status::kBehindCamera;
   Eigen::Matrix2d A;
   if (!ok(plane_affine_from_jacobians(views.H_reference, views.H_target, n_float, &A, nullptr))) {
     return Status::kBehindCamera;
@@ -249,6 +248,7 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     theta += step;
     // Converged: the system just solved is the solution's to well within its own uncertainty.
     if (step.head<2>().norm() < 1e-3 && step.segment<2>(2).norm() < 1e-4) break;
+    if (query.stop_decrement > 0.0 && step.dot(information * step) < query.stop_decrement) break;
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   Eigen::Matrix2d tilt_covariance;

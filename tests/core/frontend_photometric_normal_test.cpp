@@ -399,3 +399,31 @@ TEST_CASE("the dense correlated meat equals the general one when every pixel is 
 #endif
   }
 }
+
+TEST_CASE("the photometric normal's decrement stop stays within the estimate's own uncertainty") {
+  const TwoViews scene(0.6, 1.0, 7);
+  const GrayImageView reference_image = vantage::test::view_of(scene.pixels[0], scene.k);
+  const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
+  int compared = 0;
+  for (int sy = 30; sy <= 90; sy += 15) {
+    for (int sx = 40; sx <= 120; sx += 20) {
+      std::array<std::uint8_t, kPatchPixels> patch;
+      PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
+      PhotometricNormalEstimate full;
+      if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &full))) continue;
+      query.stop_decrement = 1e-2;
+      PhotometricNormalEstimate stopped;
+      Status status = Status::kOk;
+      REQUIRE_NO_ALLOCATION(status = estimate_photometric_normal(target_image, patch, query, scene.k, &stopped));
+      REQUIRE(ok(status));
+      // The normals' angle against the tilt's posterior standard deviation, u against a hundredth of a pixel.
+      const double angle = std::acos(std::fmin(1.0, static_cast<double>(full.normal_world.dot(stopped.normal_world))));
+      INFO("patch at " << sx << ", " << sy << ": angle " << angle << " rad, tilt variance " << full.tilt_variance);
+      CHECK(angle < 0.2 * std::sqrt(full.tilt_variance));
+      CHECK((full.uv_target_px - stopped.uv_target_px).norm() < 0.01);
+      CHECK(std::abs(stopped.tilt_variance - full.tilt_variance) < 0.1 * full.tilt_variance);
+      ++compared;
+    }
+  }
+  CHECK(compared > 10);
+}
