@@ -76,6 +76,19 @@ void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* r
   *rho_y = clamp(products_y, pairs_y);
 }
 
+// Calls add(j, rho) for pixel (x, y)'s right, lower, lower-right and lower-left neighbours j (row-major
+// index i = y p + x) with their correlation weights, in that order.
+template <typename Add>
+void for_each_correlated_neighbour(int x, int y, std::size_t i, double rho_x, double rho_y, Add add) {
+  const double rho_xy = rho_x * rho_y;
+  const bool right = x + 1 < kPatchSize;
+  const bool down = y + 1 < kPatchSize;
+  if (right) add(i + 1, rho_x);
+  if (down) add(i + kPatchSize, rho_y);
+  if (right && down) add(i + kPatchSize + 1, rho_xy);
+  if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+}
+
 // J^T C J for the correlations above (J^T J when both are zero): J^T J + P + P^T with P the sum over
 // pixels of J_i times the correlation-weighted rows of its right, lower and lower diagonal neighbours.
 // J^T J itself goes to *gram_out when it is not null.
@@ -86,22 +99,15 @@ Eigen::Matrix<double, P, P> correlated_information_meat(const PatchResiduals<P>&
   using Vector = Eigen::Matrix<double, P, 1>;
   Matrix gram = Matrix::Zero();
   Matrix cross = Matrix::Zero();
-  const double rho_xy = rho_x * rho_y;
   for (int y = 0; y < kPatchSize; ++y) {
     for (int x = 0; x < kPatchSize; ++x) {
       const std::size_t i = static_cast<std::size_t>(y * kPatchSize + x);
       if (!fit.valid[i]) continue;
       gram += fit.J[i] * fit.J[i].transpose();
       Vector neighbours = Vector::Zero();
-      auto add = [&](std::size_t j, double rho) {
+      for_each_correlated_neighbour(x, y, i, rho_x, rho_y, [&](std::size_t j, double rho) {
         if (fit.valid[j]) neighbours += rho * fit.J[j];
-      };
-      const bool right = x + 1 < kPatchSize;
-      const bool down = y + 1 < kPatchSize;
-      if (right) add(i + 1, rho_x);
-      if (down) add(i + kPatchSize, rho_y);
-      if (right && down) add(i + kPatchSize + 1, rho_xy);
-      if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+      });
       cross += fit.J[i] * neighbours.transpose();
     }
   }
@@ -128,21 +134,14 @@ template <int P>
     const double* row = fit.J[static_cast<std::size_t>(i)].data();
     for (int k = 0; k < kPairs; ++k) rows[i][k] = Double2{row[2 * k], row[2 * k + 1]};
   }
-  const double rho_xy = rho_x * rho_y;
   for (int y = 0; y < kPatchSize; ++y) {
     for (int x = 0; x < kPatchSize; ++x) {
       const int i = y * kPatchSize + x;
       Double2 sum[kPairs] = {};
-      auto add = [&](int j, double rho) {
+      for_each_correlated_neighbour(x, y, static_cast<std::size_t>(i), rho_x, rho_y, [&](std::size_t j, double rho) {
         const Double2 weight = Double2{rho, rho};
         for (int k = 0; k < kPairs; ++k) sum[k] += weight * rows[j][k];
-      };
-      const bool right = x + 1 < kPatchSize;
-      const bool down = y + 1 < kPatchSize;
-      if (right) add(i + 1, rho_x);
-      if (down) add(i + kPatchSize, rho_y);
-      if (right && down) add(i + kPatchSize + 1, rho_xy);
-      if (x > 0 && down) add(i + kPatchSize - 1, rho_xy);
+      });
       for (int k = 0; k < kPairs; ++k) neighbours[i][k] = sum[k];
     }
   }

@@ -79,18 +79,9 @@ inline Float4 pair_of_pairs(const float* a, const float* b) {
   return __builtin_shufflevector(pa, pb, 0, 1, 2, 3);
 }
 
-}  // namespace
-
-void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
-                         NccTemplate* out) {
-  static_assert(kPatchSize == 7, "two four-lane groups per template row");
-  // Float, four target pixels at a time: the values are gray levels, the offsets a few pixels.
-  alignas(16) float source[64];
-  bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, source, 64);
-  // Row-major p x p plus one lane: the last group of a row spills into the next row's first pixel,
-  // which that row's first group then writes.
-  alignas(16) float gray[kPatchPixels + 3] = {};
-  alignas(16) float mask[kPatchPixels + 3] = {};
+// The warp's sampling into gray and mask (row-major p x p plus spill lanes), four target pixels at a
+// time: the values are gray levels, the offsets a few pixels.
+void warp_lanes4(const float* source, const Eigen::Matrix2d& A, float* gray, float* mask) {
   const Float4 limit = splat4(static_cast<float>(kPatchRadius));  // the stored patch covers offsets [-r, r]
   const Float4 a00 = splat4(static_cast<float>(A(0, 0)));
   const Float4 a01 = splat4(static_cast<float>(A(0, 1)));
@@ -133,6 +124,89 @@ void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, co
       store4(&mask[i], inside ? splat4(1.0f) : zero);
     }
   }
+}
+
+#if defined(__x86_64__)
+#define VANTAGE_WARP_HAS_AVX 1
+// The same with a template row as one group of 8 AVX lanes (the eighth unused): each lane does the
+// four-lane form's operations in its order, without FMA (not enabled here), so the same bits. No
+// lambdas or helpers taking 8-lane vectors: they would not inherit the target attribute.
+__attribute__((target("avx2"))) void warp_lanes8(const float* source, const Eigen::Matrix2d& A, float* gray,
+                                                 float* mask) {
+  using Float8 = float __attribute__((vector_size(32)));
+  using Int8 = std::int32_t __attribute__((vector_size(32)));
+  using Float2 = float __attribute__((vector_size(8)));
+  const Float8 limit = Float8{} + static_cast<float>(kPatchRadius);
+  const Float8 a00 = Float8{} + static_cast<float>(A(0, 0));
+  const Float8 a01 = Float8{} + static_cast<float>(A(0, 1));
+  const Float8 a10 = Float8{} + static_cast<float>(A(1, 0));
+  const Float8 a11 = Float8{} + static_cast<float>(A(1, 1));
+  const Float8 zero = Float8{};
+  const Float8 one = Float8{} + 1.0f;
+  const Float8 dx = Float8{-3.0f, -2.0f, -1.0f, 0.0f, 1.0f, 2.0f, 3.0f, 3.0f};
+  const Int8 lane_used = Int8{-1, -1, -1, -1, -1, -1, -1, 0};
+  const Int8 last_cell = Int8{} + (kPatchSize - 2);
+  for (int ty = 0; ty < kPatchSize; ++ty) {
+    const Float8 dy = Float8{} + static_cast<float>(ty - kPatchRadius);
+    const Float8 ox = a00 * dx + a01 * dy;
+    const Float8 oy = a10 * dx + a11 * dy;
+    const Int8 inside = (ox <= limit) & (ox >= -limit) & (oy <= limit) & (oy >= -limit) & lane_used;
+    const Float8 sx = inside ? ox + limit : zero;
+    const Float8 sy = inside ? oy + limit : zero;
+    Int8 x0 = __builtin_convertvector(sx, Int8);
+    Int8 y0 = __builtin_convertvector(sy, Int8);
+    x0 = x0 > last_cell ? last_cell : x0;
+    y0 = y0 > last_cell ? last_cell : y0;
+    const Float8 fx = sx - __builtin_convertvector(x0, Float8);
+    const Float8 fy = sy - __builtin_convertvector(y0, Float8);
+    const Int8 base = y0 * kPatchSize + x0;
+    // Each lane's horizontal pair of neighbours, top and bottom row: one 8-byte load each.
+    Float2 top_pair[8];
+    Float2 bottom_pair[8];
+    for (int k = 0; k < 8; ++k) {
+      __builtin_memcpy(&top_pair[k], &source[base[k]], sizeof top_pair[k]);
+      __builtin_memcpy(&bottom_pair[k], &source[base[k] + kPatchSize], sizeof bottom_pair[k]);
+    }
+    const Float8 top_left = Float8{top_pair[0][0], top_pair[1][0], top_pair[2][0], top_pair[3][0],
+                                   top_pair[4][0], top_pair[5][0], top_pair[6][0], top_pair[7][0]};
+    const Float8 top_right = Float8{top_pair[0][1], top_pair[1][1], top_pair[2][1], top_pair[3][1],
+                                    top_pair[4][1], top_pair[5][1], top_pair[6][1], top_pair[7][1]};
+    const Float8 bottom_left = Float8{bottom_pair[0][0], bottom_pair[1][0], bottom_pair[2][0], bottom_pair[3][0],
+                                      bottom_pair[4][0], bottom_pair[5][0], bottom_pair[6][0], bottom_pair[7][0]};
+    const Float8 bottom_right = Float8{bottom_pair[0][1], bottom_pair[1][1], bottom_pair[2][1], bottom_pair[3][1],
+                                       bottom_pair[4][1], bottom_pair[5][1], bottom_pair[6][1], bottom_pair[7][1]};
+    const Float8 top = top_left + fx * (top_right - top_left);
+    const Float8 bottom = bottom_left + fx * (bottom_right - bottom_left);
+    const Float8 value = inside ? top + fy * (bottom - top) : zero;
+    const Float8 valid = inside ? one : zero;
+    __builtin_memcpy(&gray[ty * kPatchSize], &value, sizeof value);
+    __builtin_memcpy(&mask[ty * kPatchSize], &valid, sizeof valid);
+  }
+}
+#else
+#define VANTAGE_WARP_HAS_AVX 0
+#endif
+
+}  // namespace
+
+void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, const Eigen::Matrix2d& A,
+                         NccTemplate* out) {
+  static_assert(kPatchSize == 7, "two four-lane groups (one 8-lane group) per template row");
+  alignas(16) float source[64];
+  bytes_to_floats(patch.data(), kPatchPixels, kPatchPixels, source, 64);
+  // Row-major p x p plus one lane: the last group of a row spills into the next row's first pixel,
+  // which that row's first group then writes.
+  alignas(16) float gray[kPatchPixels + 3] = {};
+  alignas(16) float mask[kPatchPixels + 3] = {};
+#if VANTAGE_WARP_HAS_AVX
+  if (__builtin_cpu_supports("avx2")) {
+    warp_lanes8(source, A, gray, mask);
+  } else {
+    warp_lanes4(source, A, gray, mask);
+  }
+#else
+  warp_lanes4(source, A, gray, mask);
+#endif
   std::array<float, kPatchPixels> gray_out;
   std::array<float, kPatchPixels> mask_out;
   std::memcpy(gray_out.data(), gray, sizeof gray_out);

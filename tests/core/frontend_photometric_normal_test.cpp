@@ -345,30 +345,43 @@ TEST_CASE("the photometric normal's pixel loop equals a plain double-precision o
   CHECK_FALSE(match_kernel::functions(MatchKernel::kBaseline).photometric(view, patch.data(), &bad));
 }
 
-TEST_CASE("the photometric normal's builds give the same estimate") {
-  if (!match_kernel_supported(MatchKernel::kAvx2Fma)) return;  // one build only on this machine
-  const TwoViews scene(0.6, 1.0, 1);
+namespace {
+
+// Calls visit(scene, target image, patch, query) for a 5 x 5 grid of the 35-degree scene's patches.
+template <typename Visit>
+void for_each_grid_query(std::uint64_t seed, Visit visit) {
+  const TwoViews scene(0.6, 1.0, seed);
   const GrayImageView reference_image = vantage::test::view_of(scene.pixels[0], scene.k);
   const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
-  int compared = 0;
   for (int sy = 30; sy <= 90; sy += 15) {
     for (int sx = 40; sx <= 120; sx += 20) {
       std::array<std::uint8_t, kPatchPixels> patch;
-      PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
-      PhotometricNormalEstimate estimates[2];
-      Status status[2];
-      for (int b = 0; b < 2; ++b) {
-        query.kernel = b == 0 ? MatchKernel::kBaseline : MatchKernel::kAvx2Fma;
-        status[b] = estimate_photometric_normal(target_image, patch, query, scene.k, &estimates[b]);
-      }
-      REQUIRE(status[0] == status[1]);
-      if (!ok(status[0])) continue;
-      ++compared;
-      CHECK((estimates[0].normal_world - estimates[1].normal_world).norm() < 1e-4f);
-      CHECK((estimates[0].tilt_covariance - estimates[1].tilt_covariance).norm() < 1e-3 * estimates[0].tilt_covariance.norm());
-      CHECK((estimates[0].uv_target_px - estimates[1].uv_target_px).norm() < 1e-4);
+      const PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
+      visit(scene, target_image, patch, query);
     }
   }
+}
+
+}  // namespace
+
+TEST_CASE("the photometric normal's builds give the same estimate") {
+  if (!match_kernel_supported(MatchKernel::kAvx2Fma)) return;  // one build only on this machine
+  int compared = 0;
+  for_each_grid_query(1, [&](const TwoViews& scene, const GrayImageView& target_image,
+                             const std::array<std::uint8_t, kPatchPixels>& patch, PhotometricNormalQuery query) {
+    PhotometricNormalEstimate estimates[2];
+    Status status[2];
+    for (int b = 0; b < 2; ++b) {
+      query.kernel = b == 0 ? MatchKernel::kBaseline : MatchKernel::kAvx2Fma;
+      status[b] = estimate_photometric_normal(target_image, patch, query, scene.k, &estimates[b]);
+    }
+    REQUIRE(status[0] == status[1]);
+    if (!ok(status[0])) return;
+    ++compared;
+    CHECK((estimates[0].normal_world - estimates[1].normal_world).norm() < 1e-4f);
+    CHECK((estimates[0].tilt_covariance - estimates[1].tilt_covariance).norm() < 1e-3 * estimates[0].tilt_covariance.norm());
+    CHECK((estimates[0].uv_target_px - estimates[1].uv_target_px).norm() < 1e-4);
+  });
   CHECK(compared > 10);
 }
 
@@ -401,29 +414,23 @@ TEST_CASE("the dense correlated meat equals the general one when every pixel is 
 }
 
 TEST_CASE("the photometric normal's decrement stop stays within the estimate's own uncertainty") {
-  const TwoViews scene(0.6, 1.0, 7);
-  const GrayImageView reference_image = vantage::test::view_of(scene.pixels[0], scene.k);
-  const GrayImageView target_image = vantage::test::view_of(scene.pixels[1], scene.k);
   int compared = 0;
-  for (int sy = 30; sy <= 90; sy += 15) {
-    for (int sx = 40; sx <= 120; sx += 20) {
-      std::array<std::uint8_t, kPatchPixels> patch;
-      PhotometricNormalQuery query = facing_query(scene, reference_image, sx, sy, &patch);
-      PhotometricNormalEstimate full;
-      if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &full))) continue;
-      query.stop_decrement = 1e-2;
-      PhotometricNormalEstimate stopped;
-      Status status = Status::kOk;
-      REQUIRE_NO_ALLOCATION(status = estimate_photometric_normal(target_image, patch, query, scene.k, &stopped));
-      REQUIRE(ok(status));
-      // The normals' angle against the tilt's posterior standard deviation, u against a hundredth of a pixel.
-      const double angle = std::acos(std::fmin(1.0, static_cast<double>(full.normal_world.dot(stopped.normal_world))));
-      INFO("patch at " << sx << ", " << sy << ": angle " << angle << " rad, tilt variance " << full.tilt_variance);
-      CHECK(angle < 0.2 * std::sqrt(full.tilt_variance));
-      CHECK((full.uv_target_px - stopped.uv_target_px).norm() < 0.01);
-      CHECK(std::abs(stopped.tilt_variance - full.tilt_variance) < 0.1 * full.tilt_variance);
-      ++compared;
-    }
-  }
+  for_each_grid_query(7, [&](const TwoViews& scene, const GrayImageView& target_image,
+                             const std::array<std::uint8_t, kPatchPixels>& patch, PhotometricNormalQuery query) {
+    PhotometricNormalEstimate full;
+    if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &full))) return;
+    query.stop_decrement = 1e-2;
+    PhotometricNormalEstimate stopped;
+    Status status = Status::kOk;
+    REQUIRE_NO_ALLOCATION(status = estimate_photometric_normal(target_image, patch, query, scene.k, &stopped));
+    REQUIRE(ok(status));
+    // The normals' angle against the tilt's posterior standard deviation, u against a hundredth of a pixel.
+    const double angle = std::acos(std::fmin(1.0, static_cast<double>(full.normal_world.dot(stopped.normal_world))));
+    INFO("angle " << angle << " rad, tilt variance " << full.tilt_variance);
+    CHECK(angle < 0.2 * std::sqrt(full.tilt_variance));
+    CHECK((full.uv_target_px - stopped.uv_target_px).norm() < 0.01);
+    CHECK(std::abs(stopped.tilt_variance - full.tilt_variance) < 0.1 * full.tilt_variance);
+    ++compared;
+  });
   CHECK(compared > 10);
 }
