@@ -78,8 +78,9 @@ void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* r
 
 // Calls add(j, rho) for pixel (x, y)'s right, lower, lower-right and lower-left neighbours j (row-major
 // index i = y p + x) with their correlation weights, in that order.
+// Always inlined: called per pixel, its lambda's accumulators must stay in registers.
 template <typename Add>
-void for_each_correlated_neighbour(int x, int y, std::size_t i, double rho_x, double rho_y, Add add) {
+[[gnu::always_inline]] inline void for_each_correlated_neighbour(int x, int y, std::size_t i, double rho_x, double rho_y, Add add) {
   const double rho_xy = rho_x * rho_y;
   const bool right = x + 1 < kPatchSize;
   const bool down = y + 1 < kPatchSize;
