@@ -7,6 +7,13 @@
 
 #include "core/geometry/projection.hpp"
 
+// The warp's and the template moments' 8-lane AVX passes: x86-64 only, each with a four-lane baseline.
+#if defined(__x86_64__)
+#define VANTAGE_PATCH_WARP_HAS_AVX 1
+#else
+#define VANTAGE_PATCH_WARP_HAS_AVX 0
+#endif
+
 namespace vantage {
 
 Eigen::Matrix<double, 3, 2> plane_basis(const Eigen::Vector3d& n) {
@@ -79,6 +86,13 @@ inline Float4 pair_of_pairs(const float* a, const float* b) {
   return __builtin_shufflevector(pa, pb, 0, 1, 2, 3);
 }
 
+// Whether the 8-lane passes run: not for kBaseline, and only where the CPU has AVX2. libgcc's CPU model
+// is set up by its constructor before main (match_kernel_supported's explicit initialization and kernel
+// mapping would cost as much per template as the unmasked 8-lane pass saves).
+#if VANTAGE_PATCH_WARP_HAS_AVX
+bool use_avx2(MatchKernel kernel) { return kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2"); }
+#endif
+
 // The warp's sampling into gray and mask (row-major p x p plus spill lanes), four target pixels at a
 // time: the values are gray levels, the offsets a few pixels.
 void warp_lanes4(const float* source, const Eigen::Matrix2d& A, float* gray, float* mask) {
@@ -126,8 +140,7 @@ void warp_lanes4(const float* source, const Eigen::Matrix2d& A, float* gray, flo
   }
 }
 
-#if defined(__x86_64__)
-#define VANTAGE_WARP_HAS_AVX 1
+#if VANTAGE_PATCH_WARP_HAS_AVX
 // The same with a template row as one group of 8 AVX lanes (the eighth unused): each lane does the
 // four-lane form's operations in its order, without FMA (not enabled here), so the same bits. No
 // lambdas or helpers taking 8-lane vectors: they would not inherit the target attribute.
@@ -183,8 +196,6 @@ __attribute__((target("avx2"))) void warp_lanes8(const float* source, const Eige
     __builtin_memcpy(&mask[ty * kPatchSize], &valid, sizeof valid);
   }
 }
-#else
-#define VANTAGE_WARP_HAS_AVX 0
 #endif
 
 }  // namespace
@@ -198,15 +209,10 @@ void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, co
   // which that row's first group then writes.
   alignas(16) float gray[kPatchPixels + 3] = {};
   alignas(16) float mask[kPatchPixels + 3] = {};
-#if VANTAGE_WARP_HAS_AVX
-  if (__builtin_cpu_supports("avx2")) {
-    warp_lanes8(source, A, gray, mask);
-  } else {
-    warp_lanes4(source, A, gray, mask);
-  }
-#else
-  warp_lanes4(source, A, gray, mask);
+#if VANTAGE_PATCH_WARP_HAS_AVX
+  if (use_avx2(MatchKernel::kAuto)) warp_lanes8(source, A, gray, mask); else
 #endif
+  warp_lanes4(source, A, gray, mask);
   std::array<float, kPatchPixels> gray_out;
   std::array<float, kPatchPixels> mask_out;
   std::memcpy(gray_out.data(), gray, sizeof gray_out);
@@ -320,11 +326,10 @@ void unmasked_lanes4(const float* v, UnmaskedLanes* out) {
   *out = UnmaskedLanes{xx0, xy0, yy0, xx1, xy1, yy1, xx_y, xy_y, yy_y};
 }
 
-#if defined(__x86_64__)
-#define VANTAGE_MOMENTS_HAS_AVX 1
+#if VANTAGE_PATCH_WARP_HAS_AVX
 // The same pass with a row's two groups as one 8-lane AVX vector: each lane does the four-lane form's
 // operations in its order (group 0's products with 1 are exact; AVX without FMA, so nothing is
-// contracted), so the same bits. Chosen at run time (the CPU's AVX2 flag).
+// contracted), so the same bits. Chosen at run time (use_avx2).
 __attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLanes* out) {
   // No lambdas: they would not inherit the target attribute.
   using Float8 = float __attribute__((vector_size(32)));
@@ -355,8 +360,6 @@ __attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLan
                        __builtin_shufflevector(xy, xy, 4, 5, 6, 7), __builtin_shufflevector(yy, yy, 4, 5, 6, 7),
                        xx_y, xy_y, yy_y};
 }
-#else
-#define VANTAGE_MOMENTS_HAS_AVX 0
 #endif
 
 // The masked pass over the framed template and mask (template_gradient_moments below): lane sums of
@@ -390,7 +393,7 @@ void masked_lanes4(const float* v, const float* m, Float4 (&g_acc)[2][3], Float4
   }
 }
 
-#if VANTAGE_MOMENTS_HAS_AVX
+#if VANTAGE_PATCH_WARP_HAS_AVX
 // The same with a row's two groups as one 8-lane AVX vector (each lane the four-lane form's operations,
 // no FMA: the same bits).
 __attribute__((target("avx2"))) void masked_lanes8(const float* v, const float* m, Float4 (&g_acc)[2][3],
@@ -440,18 +443,11 @@ void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, Mat
   alignas(32) float v[kFrameRows * kFrameStride];
   frame_extrapolated(tmpl, v);
   UnmaskedLanes lanes;
-#if VANTAGE_MOMENTS_HAS_AVX
-  // libgcc's CPU model, initialized by its constructor before main (match_kernel_supported's explicit
-  // initialization and kernel mapping cost as much as the 8-lane pass saves on the unmasked path).
-  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
-    unmasked_lanes8(v, &lanes);
-  } else {
-    unmasked_lanes4(v, &lanes);
-  }
-#else
-  (void)kernel;
-  unmasked_lanes4(v, &lanes);
+  (void)kernel;  // the baseline's only pass on other targets
+#if VANTAGE_PATCH_WARP_HAS_AVX
+  if (use_avx2(kernel)) unmasked_lanes8(v, &lanes); else
 #endif
+  unmasked_lanes4(v, &lanes);
   moments_from_unmasked_lanes(lanes, out);
 }
 
@@ -485,15 +481,10 @@ void template_gradient_moments(const NccTemplate& tmpl, TemplateGradientMoments*
   }
   Float4 g_acc[2][3] = {};
   Float4 q_acc[2][3] = {};
-#if VANTAGE_MOMENTS_HAS_AVX
-  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
-    masked_lanes8(v, m, g_acc, q_acc);
-  } else {
-    masked_lanes4(v, m, g_acc, q_acc);
-  }
-#else
-  masked_lanes4(v, m, g_acc, q_acc);
+#if VANTAGE_PATCH_WARP_HAS_AVX
+  if (use_avx2(kernel)) masked_lanes8(v, m, g_acc, q_acc); else
 #endif
+  masked_lanes4(v, m, g_acc, q_acc);
   moments_from_lanes(g_acc, q_acc, 1.0, out);
 }
 
