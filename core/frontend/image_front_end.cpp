@@ -295,6 +295,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
+  tracking_view_ = view;
   // Occluders first: every primitive in front of the camera, pushed back by its uncertainty.
   const double k_sigma = config_.occlusion_sigmas;
   const bool occlusion = config_.occlusion_enabled && ok(depth_buffer_.configure(view, intrinsics_));
@@ -554,6 +555,13 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   Primitive& p = pool[i];
   p.flags |= primitive_flags::kLostTrack;
   if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+  if (pool.is_alive(i) && config_.erase_provisional_rejected && (p.flags & primitive_flags::kProvisional) != 0 &&
+      depth_would_show(p, tracking_view_) && ok(pool.erase(i))) {
+    ++stats_.provisional_erased;
+    ++report.gated_erased;
+    if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
+    forget_cell(i, centre_cell);
+  }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
 
@@ -588,6 +596,18 @@ void ImageFrontEnd::judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& S
   ++report.gated_erased;
   if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
   forget_cell(i, centre_cell);
+}
+
+bool ImageFrontEnd::depth_would_show(const Primitive& p, const Viewpoint& view) const {
+  Viewpoint creating;
+  Eigen::Vector2d uv;
+  Eigen::Matrix<double, 2, 3> H;
+  if (!ok(view_pose(p.creating_view, &creating)) || !ok(project_with_jacobian(p.X_world, view, intrinsics_, &uv, &H))) {
+    return false;
+  }
+  const Eigen::Vector3d ray = (p.X_world - creating.position_world).normalized();
+  const Eigen::Vector2d shift = std::sqrt(ray.dot(p.Sigma_world * ray)) * (H * ray);
+  return shift.dot(config_.ekf.R_px2.inverse() * shift) >= config_.confirm_min_depth_information;
 }
 
 void ImageFrontEnd::forget_cell(PrimitiveIndex i, std::size_t centre_cell) {

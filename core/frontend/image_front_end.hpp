@@ -171,6 +171,12 @@ struct FrontEndConfig {
   // A provisional primitive still unconfirmed after this many accepted updates is erased (its depth
   // rests on the spawn match alone, and the views that see it cannot tell). 0: kept, flagged.
   std::uint32_t provisional_max_updates = 0;
+  // A provisional primitive with at least one accepted update whose match fails or is gated in a view where
+  // its prior's seed-ray uncertainty projects to at least sqrt(confirm_min_depth_information) standard
+  // deviations of the fixed R (ekf.R_px2, the one that sizes search windows): a view where a wrong depth
+  // shows is erased, as a first re-observation that fails is (confirm_spawns). Off: kept, counted as a
+  // rejection (kUnconsumed, erase_unsearchable).
+  bool erase_provisional_rejected = false;
 
   // kOk, kNonFiniteInput or kInvalidArgument naming no field (see the README for the ranges).
   Status validate() const;
@@ -190,7 +196,7 @@ struct FrontEndStats {
   std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
   std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable
   std::uint64_t parallax_confirmed = 0;       // provisional primitives confirmed (confirm_min_depth_information)
-  std::uint64_t provisional_erased = 0;       // FrontEndConfig::provisional_max_updates
+  std::uint64_t provisional_erased = 0;       // FrontEndConfig::provisional_max_updates, erase_provisional_rejected
   EkfStats ekf;
 };
 
@@ -303,6 +309,9 @@ class ImageFrontEnd final : public MeasurementSource {
   // major axis when null), erases it at provisional_max_updates otherwise (FrontEndConfig).
   void judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& Sigma_prior, const Viewpoint* creating,
                          std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  // Whether provisional primitive p's seed-ray uncertainty projects into view to at least
+  // sqrt(confirm_min_depth_information) standard deviations of ekf.R_px2 (erase_provisional_rejected).
+  bool depth_would_show(const Primitive& p, const Viewpoint& view) const;
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
@@ -332,6 +341,7 @@ class ImageFrontEnd final : public MeasurementSource {
   bool configured_ = false;
   bool initialized_ = false;
   TrackObserver* observer_ = nullptr;
+  Viewpoint tracking_view_;  // the view track() is matching (reject_observation's parallax test)
   std::uint32_t next_view_index_ = 0;
 
   GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight> previous_image_;

@@ -90,6 +90,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_option("--provisional-max-updates", options.provisional_max_updates,
                  "image front end: erase a provisional primitive at this many accepted updates (default 0: keep)")
       ->check(CLI::Range(0u, 255u));
+  app.add_flag("--erase-provisional-rejected", options.erase_provisional_rejected,
+               "image front end: erase a provisional primitive whose match fails or is gated in a view where its "
+               "depth would show");
   app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
       ->check(CLI::Range(100u, 1000000u));
   std::size_t gt_samples = 50000;
@@ -159,7 +162,9 @@ int run_cli(int argc, const char* const* argv) {
       std::cout << "  accuracy: rms " << summary.accuracy_rms << " p95 " << summary.accuracy_p95 << "; confirmed rms "
                 << summary.accuracy_rms_confirmed << " p95 " << summary.accuracy_p95_confirmed << "; provisional "
                 << summary.provisional << " of " << summary.primitives << " (rms " << summary.accuracy_rms_provisional
-                << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "\n";
+                << "; never observed " << summary.provisional_unobserved << ", rms " << summary.accuracy_rms_unobserved
+                << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "; > 1 unit off "
+                << summary.gross << " (provisional " << summary.gross_provisional << ")\n";
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
         std::string error;

@@ -137,16 +137,23 @@ void rms_p95(std::vector<double>* d, double* rms, double* p95) {
 // The accuracy figures split by primitive_flags::kProvisional and by update count; distances in the
 // alive primitives' index order (GroundTruth::accuracy).
 void split_accuracy(const PrimitivePoolView& pool, const std::vector<double>& distances, MissionSummary* summary) {
-  std::vector<double> confirmed, provisional, updated2;
+  std::vector<double> confirmed, provisional, unobserved, updated2;
   std::size_t k = 0;
   for (PrimitiveIndex i = 0; i < pool.index_bound() && k < distances.size(); ++i) {
     if (!pool.is_alive(i)) continue;
     const double d = distances[k++];
     ((pool[i].flags & primitive_flags::kProvisional) != 0 ? provisional : confirmed).push_back(d);
+    if ((pool[i].flags & primitive_flags::kProvisional) != 0 && pool[i].observation_count == 0) unobserved.push_back(d);
+    if (d > 1.0) {
+      ++summary->gross;
+      if ((pool[i].flags & primitive_flags::kProvisional) != 0) ++summary->gross_provisional;
+    }
     if (pool[i].observation_count >= 2) updated2.push_back(d);
   }
   double unused = 0.0;
   summary->provisional = provisional.size();
+  summary->provisional_unobserved = unobserved.size();
+  rms_p95(&unobserved, &summary->accuracy_rms_unobserved, &unused);
   rms_p95(&confirmed, &summary->accuracy_rms_confirmed, &summary->accuracy_p95_confirmed);
   rms_p95(&provisional, &summary->accuracy_rms_provisional, &unused);
   rms_p95(&updated2, &summary->accuracy_rms_updated2, &unused);
@@ -207,6 +214,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;
+    fc.erase_provisional_rejected = options.erase_provisional_rejected;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;

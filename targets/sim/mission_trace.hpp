@@ -55,6 +55,10 @@ struct MissionSummary {
   double accuracy_p95_confirmed = 0.0;
   std::size_t provisional = 0;
   double accuracy_rms_provisional = 0.0;
+  std::size_t provisional_unobserved = 0;    // of which no update accepted since the spawn
+  double accuracy_rms_unobserved = 0.0;
+  std::size_t gross = 0;                     // primitives more than 1 unit from the surface
+  std::size_t gross_provisional = 0;         // of which provisional
   double accuracy_rms_updated2 = 0.0;
   std::size_t primitives = 0;
   bool reached_goal = false;
