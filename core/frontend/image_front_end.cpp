@@ -556,11 +556,8 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   p.flags |= primitive_flags::kLostTrack;
   if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
   if (pool.is_alive(i) && config_.erase_provisional_rejected && (p.flags & primitive_flags::kProvisional) != 0 &&
-      depth_would_show(p, tracking_view_) && ok(pool.erase(i))) {
-    ++stats_.provisional_erased;
-    ++report.gated_erased;
-    if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
-    forget_cell(i, centre_cell);
+      depth_would_show(p, tracking_view_)) {
+    erase_provisional(i, centre_cell, pool, report);
   }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
@@ -591,6 +588,11 @@ void ImageFrontEnd::judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& S
     return;
   }
   if (config_.provisional_max_updates == 0 || p.observation_count < config_.provisional_max_updates) return;
+  erase_provisional(i, centre_cell, pool, report);
+}
+
+void ImageFrontEnd::erase_provisional(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                      UpdateReport& report) {
   if (!ok(pool.erase(i))) return;
   ++stats_.provisional_erased;
   ++report.gated_erased;
