@@ -156,7 +156,7 @@ TEST_CASE("parallax confirmation: provisional_max_updates erases what stays unco
   }
 }
 
-TEST_CASE("parallax confirmation off flags nothing; the fields are validated; no allocation") {
+TEST_CASE("parallax confirmation: off flags nothing and the fields are validated without allocating") {
   Scene scene;
   initialize(scene, config_with(0.0));
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
