@@ -430,27 +430,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
-    TrackedObservation seen;
-    if (observer_ != nullptr) {
-      seen.index = i;
-      seen.prior = p;
-      seen.predicted_px = predicted;
-      seen.observed_px = observed;
-      seen.R_px2 = ekf.R_px2;
-      seen.warp_covariance_px2 = warp_covariance;
-      seen.common_covariance_px2 = common.covariance_px2;
-      seen.common_cross_covariance = common.cross_covariance;
-      seen.B = B;
-      seen.view = view;
-      seen.creating_view = creating;
-    }
     const Status updated =
-        iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
-                                 ProjectionAtPrior{predicted, H}, &stats_.ekf);
-    if (observer_ != nullptr) {
-      seen.outcome = updated;
-      observer_->on_observation(seen);
-    }
+        observer_ != nullptr
+            ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating)
+            : iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
+                                       ProjectionAtPrior{predicted, H}, &stats_.ekf);
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
@@ -462,6 +446,29 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       reject_observation(i, centre_cell, pool, report, beyond_search);
     }
   }
+}
+
+Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
+                                      const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
+                                      const Eigen::Vector2d& observed, const EkfConfig& ekf,
+                                      const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
+                                      const Viewpoint& view, const Viewpoint& creating) {
+  TrackedObservation seen;
+  seen.index = i;
+  seen.prior = p;
+  seen.predicted_px = predicted;
+  seen.observed_px = observed;
+  seen.R_px2 = ekf.R_px2;
+  seen.warp_covariance_px2 = warp_covariance;
+  seen.common_covariance_px2 = common->covariance_px2;
+  seen.common_cross_covariance = common->cross_covariance;
+  seen.B = B;
+  seen.view = view;
+  seen.creating_view = creating;
+  seen.outcome = iterated_consider_update(p, common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
+                                          ProjectionAtPrior{predicted, H}, &stats_.ekf);
+  observer_->on_observation(seen);
+  return seen.outcome;
 }
 
 bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion,

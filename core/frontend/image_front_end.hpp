@@ -207,6 +207,8 @@ class TrackObserver {
   ~TrackObserver() = default;
 };
 
+struct CommonObservationError;  // core/frontend/iterated_update.hpp
+
 class ImageFrontEnd final : public MeasurementSource {
  public:
   ImageFrontEnd() = default;
@@ -266,6 +268,13 @@ class ImageFrontEnd final : public MeasurementSource {
                                  Eigen::Matrix2d* fit_covariance);
   // Replaces a match's fit covariance by the one with the residuals' spatial correlation
   // (FrontEndConfig::correlated_fit_covariance) when that can be computed.
+  // The EKF update of a tracked primitive with the observer told (observer_ set): the TrackedObservation
+  // is built only here, not per primitive when nobody observes.
+  [[gnu::noinline]] Status observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
+                                           const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
+                                           const Eigen::Vector2d& observed, const EkfConfig& ekf,
+                                           const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
+                                           const Viewpoint& view, const Viewpoint& creating);
   void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
                                 Eigen::Matrix2d* fit_covariance) const;
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
