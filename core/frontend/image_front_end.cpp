@@ -37,6 +37,14 @@ std::int32_t floor_to_int(double value) {
   return truncated - (value < truncated ? 1 : 0);
 }
 
+// std::ceil without the library call for 0 <= value < 2^30 (the search windows' half sizes); anything
+// else (NaN, huge) goes to std::ceil.
+double ceil_small(double value) {
+  if (!(value >= 0.0 && value < 1073741824.0)) return std::ceil(value);
+  const std::int32_t truncated = static_cast<std::int32_t>(value);
+  return static_cast<double>(truncated + (truncated < value ? 1 : 0));
+}
+
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
@@ -197,8 +205,9 @@ void ImageFrontEnd::reset_cells() {
 }
 
 std::size_t ImageFrontEnd::cell_of(const Eigen::Vector2d& uv_px) const {
-  std::int32_t cx = static_cast<std::int32_t>(std::floor((uv_px.x() + 0.5) / config_.seed_stride_px));
-  std::int32_t cy = static_cast<std::int32_t>(std::floor((uv_px.y() + 0.5) / config_.seed_stride_px));
+  // uv_px lies inside the image (track()'s predictions): floor_to_int is floor here, without the libm call.
+  std::int32_t cx = floor_to_int((uv_px.x() + 0.5) / config_.seed_stride_px);
+  std::int32_t cy = floor_to_int((uv_px.y() + 0.5) / config_.seed_stride_px);
   cx = cx < 0 ? 0 : (cx >= cells_x_ ? cells_x_ - 1 : cx);
   cy = cy < 0 ? 0 : (cy >= cells_y_ ? cells_y_ - 1 : cy);
   return static_cast<std::size_t>(cy) * cells_x_ + cx;
@@ -382,8 +391,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.predicted_px = predicted;
       query.S_inv = S.inverse();
       query.gate_chi2 = 9.0;  // the 3-sigma ellipse
-      const double half_w = std::ceil(3.0 * std::sqrt(S(0, 0)));
-      const double half_h = std::ceil(3.0 * std::sqrt(S(1, 1)));
+      const double half_w = ceil_small(3.0 * std::sqrt(S(0, 0)));
+      const double half_h = ceil_small(3.0 * std::sqrt(S(1, 1)));
       const double cap = config_.max_search_half_window_px;
       beyond_search = half_w > cap || half_h > cap;
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
