@@ -305,21 +305,31 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const double k_sigma = config_.occlusion_sigmas;
   const bool occlusion = config_.occlusion_enabled && ok(depth_buffer_.configure(view, intrinsics_));
   if (occlusion) {
+    // Four discs per splat_batch call (the same pixels and values as splat() one by one).
+    DiscBatch discs;
     for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
       if (!pool.is_alive(i)) continue;
       const Primitive& p = pool[i];
       const Eigen::Vector3d ray = (p.X_world - view.position_world).normalized();
       const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-      (void)depth_buffer_.splat((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
+      discs.push((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
+      if (discs.full()) (void)depth_buffer_.splat_batch(discs);
     }
+    (void)depth_buffer_.splat_batch(discs);
   }
   NccTemplate tmpl;
+  // The next few alive primitives' predictions, made ahead so their occlusion tests share one lane batch
+  // (nothing in this loop changes another primitive, so they are what the loop would compute).
+  PredictionBatch ahead;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i)) continue;
     Primitive& p = pool[i];
-    Eigen::Vector2d predicted;
-    Eigen::Matrix<double, 2, 3> H;
-    if (!predicted_in_view(p, view, occlusion, &predicted, &H)) {
+    if (ahead.next >= ahead.count || ahead.index[ahead.next] != i) predict_batch(i, view, occlusion, pool, &ahead);
+    const std::int32_t slot = ahead.next++;
+    // References into `ahead`: it is refilled only at a later primitive.
+    const Eigen::Vector2d& predicted = ahead.predicted[slot];
+    const Eigen::Matrix<double, 2, 3>& H = ahead.H[slot];
+    if (!ahead.in_view[slot]) {
       // Not even seen in the first image after its creation: nothing confirms it (confirm_spawns).
       if (p.observation_count == 0 && p.creating_view < next_view_index_) drop_unconfirmed(i, kNoCell, pool);
       continue;
@@ -480,8 +490,9 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
   return seen.outcome;
 }
 
-bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion,
-                                      Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H) const {
+bool ImageFrontEnd::predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion,
+                                       Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H,
+                                       Eigen::Vector3f* pulled_world) const {
   if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, predicted, H))) return false;
   if (!in_image(*predicted, intrinsics_, kPatchRadius + 1.0)) return false;
   const Eigen::Vector3d to_camera = view.position_world - p.X_world;
@@ -492,8 +503,35 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
   // Pulled forward by its own uncertainty, it must not be behind the buffer.
   const Eigen::Vector3d ray = -to_camera / distance;
   const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-  return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
-                                  p.radius);
+  *pulled_world = (p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>();
+  return true;
+}
+
+void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, bool occlusion,
+                                  const PrimitivePoolView& pool, PredictionBatch* batch) const {
+  batch->count = 0;
+  batch->next = 0;
+  DiscBatch discs;
+  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
+  for (PrimitiveIndex i = first; i < pool.index_bound() && batch->count < kDiscBatchSize; ++i) {
+    if (!pool.is_alive(i)) continue;
+    const std::int32_t slot = batch->count++;
+    const Primitive& p = pool[i];
+    batch->index[slot] = i;
+    Eigen::Vector3f pulled;
+    batch->in_view[slot] = predicted_geometry(p, view, occlusion, &batch->predicted[slot], &batch->H[slot], &pulled);
+    lane_of[slot] = -1;
+    if (batch->in_view[slot] && occlusion) {
+      lane_of[slot] = discs.count;
+      discs.push(pulled, p.normal_world, p.radius);
+    }
+  }
+  if (discs.count == 0) return;
+  std::array<bool, kDiscBatchSize> visible;
+  depth_buffer_.is_visible_batch(discs, &visible);
+  for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+    if (lane_of[slot] >= 0) batch->in_view[slot] = visible[lane_of[slot]];
+  }
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
