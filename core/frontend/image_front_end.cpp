@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
+
 #include "core/frontend/iterated_update.hpp"
 #include "core/frontend/match_covariance.hpp"
 #include "core/frontend/patch_warp.hpp"
@@ -97,7 +99,7 @@ Status FrontEndConfig::validate() const {
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
-                           direct_fit_max_px};
+                           direct_fit_max_px, confirm_min_depth_information};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -116,6 +118,7 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
+  if (!(confirm_min_depth_information >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
   if (!finite_positive(max_initial_sigma) || !(warp_min_deviation >= 0.0)) return Status::kInvalidArgument;
   if (!(min_facing_cos > -1.0 && min_facing_cos < 1.0)) return Status::kInvalidArgument;
@@ -301,6 +304,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
+  tracking_view_ = view;
   // Occluders first: every primitive in front of the camera, pushed back by its uncertainty.
   const double k_sigma = config_.occlusion_sigmas;
   const bool occlusion = config_.occlusion_enabled && ok(depth_buffer_.configure(view, intrinsics_));
@@ -449,6 +453,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
+    // A provisional primitive's prior, to tell whether this update constrained its depth.
+    const bool provisional = (p.flags & primitive_flags::kProvisional) != 0;
+    const Eigen::Matrix3d Sigma_prior = provisional ? p.Sigma_world : Eigen::Matrix3d::Zero();
     const Status updated =
         observer_ != nullptr
             ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating)
@@ -460,6 +467,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
       p.flags &= static_cast<std::uint16_t>(~(primitive_flags::kLostTrack | primitive_flags::kUnconsumed));
       if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
+      if (provisional) judge_provisional(i, Sigma_prior, have_creating ? &creating : nullptr, centre_cell, pool, report);
     } else if (updated == Status::kGatedOutlier) {
       ++report.gated_outliers;
       reject_observation(i, centre_cell, pool, report, beyond_search);
@@ -601,6 +609,10 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   Primitive& p = pool[i];
   p.flags |= primitive_flags::kLostTrack;
   if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
+  if (pool.is_alive(i) && config_.erase_provisional_rejected && (p.flags & primitive_flags::kProvisional) != 0 &&
+      depth_would_show(p, tracking_view_)) {
+    erase_provisional(i, centre_cell, pool, report);
+  }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
 
@@ -608,6 +620,50 @@ void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, 
   if (!config_.confirm_spawns || !ok(pool.erase(i))) return;
   ++stats_.unconfirmed_erased;
   forget_cell(i, centre_cell);
+}
+
+void ImageFrontEnd::judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& Sigma_prior, const Viewpoint* creating,
+                                      std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report) {
+  Primitive& p = pool[i];
+  // The depth a spawn match fixes is along the seed ray; without the creating pose, the prior's long axis.
+  Eigen::Vector3d ray = creating != nullptr ? Eigen::Vector3d(p.X_world - creating->position_world)
+                                            : Eigen::Vector3d::Zero();
+  if (!(ray.norm() > 0.0)) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+    eigen.computeDirect(Sigma_prior);
+    ray = eigen.eigenvectors().col(2);
+  }
+  ray.normalize();
+  const double prior_variance = ray.dot(Sigma_prior * ray);
+  const double posterior_variance = ray.dot(p.Sigma_world * ray);
+  if (posterior_variance * (1.0 + config_.confirm_min_depth_information) <= prior_variance) {
+    p.flags &= static_cast<std::uint16_t>(~primitive_flags::kProvisional);
+    ++stats_.parallax_confirmed;
+    return;
+  }
+  if (config_.provisional_max_updates == 0 || p.observation_count < config_.provisional_max_updates) return;
+  erase_provisional(i, centre_cell, pool, report);
+}
+
+void ImageFrontEnd::erase_provisional(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                      UpdateReport& report) {
+  if (!ok(pool.erase(i))) return;
+  ++stats_.provisional_erased;
+  ++report.gated_erased;
+  if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
+  forget_cell(i, centre_cell);
+}
+
+bool ImageFrontEnd::depth_would_show(const Primitive& p, const Viewpoint& view) const {
+  Viewpoint creating;
+  Eigen::Vector2d uv;
+  Eigen::Matrix<double, 2, 3> H;
+  if (!ok(view_pose(p.creating_view, &creating)) || !ok(project_with_jacobian(p.X_world, view, intrinsics_, &uv, &H))) {
+    return false;
+  }
+  const Eigen::Vector3d ray = (p.X_world - creating.position_world).normalized();
+  const Eigen::Vector2d shift = std::sqrt(ray.dot(p.Sigma_world * ray)) * (H * ray);
+  return shift.dot(config_.ekf.R_px2.inverse() * shift) >= config_.confirm_min_depth_information;
 }
 
 void ImageFrontEnd::forget_cell(PrimitiveIndex i, std::size_t centre_cell) {
@@ -841,6 +897,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       p.radius = static_cast<float>(footprint_radius(stride, depth, focal, 1.0));
       p.saliency_h = compute_saliency_h(p.patch, config_.saliency);
       p.creating_view = reference_index;
+      // Its depth rests on this one match until a view with parallax confirms it (judge_provisional).
+      if (config_.confirm_min_depth_information > 0.0) p.flags |= primitive_flags::kProvisional;
       PrimitiveIndex index = kInvalidPrimitive;
       const Status inserted = pool.insert(p, &index);
       if (inserted == Status::kPoolFull) {

@@ -158,6 +158,25 @@ struct FrontEndConfig {
   double merge_max_normal_angle_deg = 10.0;
   double merge_plane_sigmas = 3.0;
   double merge_max_radius_px = 8.0;
+  // Confirmation by parallax (README, "Confirmation by parallax"): a new primitive is provisional
+  // (primitive_flags::kProvisional) until an accepted match has constrained its depth: its update
+  // divided the variance along the seed ray (the direction a wrong spawn match moves the point) by at
+  // least 1 + confirm_min_depth_information, i.e. that view's match carried at least this fraction of
+  // the prior's information on the depth. For a linear update that is sigma_ray^2 (H d)^T R^-1 (H d) >=
+  // confirm_min_depth_information: one prior standard deviation along the ray moves the projection by at
+  // least sqrt(that) match standard deviations, so at 1 a depth error beyond 3.5 prior sigmas would have
+  // been gated (chi2 2 dof 95 %). A match from a view nearly collinear with the seed ray passes the gate
+  // whatever the depth and does not confirm. 0: off (no primitive is flagged).
+  double confirm_min_depth_information = 1.0;
+  // A provisional primitive still unconfirmed after this many accepted updates is erased (its depth
+  // rests on the spawn match alone, and the views that see it cannot tell). 0: kept, flagged.
+  std::uint32_t provisional_max_updates = 0;
+  // A provisional primitive with at least one accepted update whose match fails or is gated in a view where
+  // its prior's seed-ray uncertainty projects to at least sqrt(confirm_min_depth_information) standard
+  // deviations of the fixed R (ekf.R_px2, the one that sizes search windows): a view where a wrong depth
+  // shows is erased, as a first re-observation that fails is (confirm_spawns). Off: kept, counted as a
+  // rejection (kUnconsumed, erase_unsearchable).
+  bool erase_provisional_rejected = false;
 
   // kOk, kNonFiniteInput or kInvalidArgument naming no field (see the README for the ranges).
   Status validate() const;
@@ -176,6 +195,8 @@ struct FrontEndStats {
   std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
   std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
   std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable
+  std::uint64_t parallax_confirmed = 0;       // provisional primitives confirmed (confirm_min_depth_information)
+  std::uint64_t provisional_erased = 0;       // FrontEndConfig::provisional_max_updates, erase_provisional_rejected
   EkfStats ekf;
 };
 
@@ -305,6 +326,16 @@ class ImageFrontEnd final : public MeasurementSource {
   // unconsumed_after_rejections, erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
                        bool beyond_search);
+  // After an accepted update of provisional primitive i (prior covariance Sigma_prior): clears
+  // kProvisional when the update constrained its depth along the seed ray (from creating, or Sigma_prior's
+  // major axis when null), erases it at provisional_max_updates otherwise (FrontEndConfig).
+  void judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& Sigma_prior, const Viewpoint* creating,
+                         std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  // Erases provisional primitive i (FrontEndStats::provisional_erased, UpdateReport::gated_erased).
+  void erase_provisional(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  // Whether provisional primitive p's seed-ray uncertainty projects into view to at least
+  // sqrt(confirm_min_depth_information) standard deviations of ekf.R_px2 (erase_provisional_rejected).
+  bool depth_would_show(const Primitive& p, const Viewpoint& view) const;
   void merge_neighbours(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Positions of the alive primitives in the 8 cells around (cx, cy), for a plane fit; with a finite
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
@@ -334,6 +365,7 @@ class ImageFrontEnd final : public MeasurementSource {
   bool configured_ = false;
   bool initialized_ = false;
   TrackObserver* observer_ = nullptr;
+  Viewpoint tracking_view_;  // the view track() is matching (reject_observation's parallax test)
   std::uint32_t next_view_index_ = 0;
 
   GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight> previous_image_;

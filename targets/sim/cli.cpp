@@ -83,6 +83,16 @@ int run_cli(int argc, const char* const* argv) {
                  "image front end: match a primitive whose prior 3-sigma ellipse is within this many pixels by the "
                  "subpixel fit from its prediction, searching only if that fails (default 1; 0: always search)")
       ->check(CLI::Range(0.0, 12.0));
+  app.add_option("--confirm-depth-information", options.confirm_depth_information,
+                 "image front end: a new primitive stays provisional until an update divides its seed-ray variance "
+                 "by 1 + this (default 1; 0: off)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--provisional-max-updates", options.provisional_max_updates,
+                 "image front end: erase a provisional primitive at this many accepted updates (default 0: keep)")
+      ->check(CLI::Range(0u, 255u));
+  app.add_flag("--erase-provisional-rejected", options.erase_provisional_rejected,
+               "image front end: erase a provisional primitive whose match fails or is gated in a view where its "
+               "depth would show");
   app.add_option("--oracle-sites", options.oracle_sites, "candidate primitive sites of the oracle")
       ->check(CLI::Range(100u, 1000000u));
   std::size_t gt_samples = 50000;
@@ -149,6 +159,12 @@ int run_cli(int argc, const char* const* argv) {
                 << 100.0 * summary.model_coverage << "%), avg sigma "
                 << summary.mean_sigma << ", accuracy rms " << summary.accuracy_rms << ", planning "
                 << summary.planning_seconds << " s, wall " << summary.wall_seconds << " s\n";
+      std::cout << "  accuracy: rms " << summary.accuracy_rms << " p95 " << summary.accuracy_p95 << "; confirmed rms "
+                << summary.accuracy_rms_confirmed << " p95 " << summary.accuracy_p95_confirmed << "; provisional "
+                << summary.provisional << " of " << summary.primitives << " (rms " << summary.accuracy_rms_provisional
+                << "; never observed " << summary.provisional_unobserved << ", rms " << summary.accuracy_rms_unobserved
+                << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "; > 1 unit off "
+                << summary.gross << " (provisional " << summary.gross_provisional << ")\n";
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
         std::string error;

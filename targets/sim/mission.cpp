@@ -124,6 +124,41 @@ const char* to_string(MeasurementKind kind) { return kind == MeasurementKind::kI
 
 const PrimitivePoolView& mission_pool() { return g_pool; }
 
+// RMS of distances; p95 by nearest rank (as GroundTruth::accuracy). Sorts *d.
+void rms_p95(std::vector<double>* d, double* rms, double* p95) {
+  double sum_sq = 0.0;
+  for (double x : *d) sum_sq += x * x;
+  *rms = d->empty() ? 0.0 : std::sqrt(sum_sq / static_cast<double>(d->size()));
+  std::sort(d->begin(), d->end());
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(d->size())));
+  *p95 = d->empty() ? 0.0 : (*d)[rank == 0 ? 0 : rank - 1];
+}
+
+// The accuracy figures split by primitive_flags::kProvisional and by update count; distances in the
+// alive primitives' index order (GroundTruth::accuracy).
+void split_accuracy(const PrimitivePoolView& pool, const std::vector<double>& distances, MissionSummary* summary) {
+  std::vector<double> confirmed, provisional, unobserved, updated2;
+  std::size_t k = 0;
+  for (PrimitiveIndex i = 0; i < pool.index_bound() && k < distances.size(); ++i) {
+    if (!pool.is_alive(i)) continue;
+    const double d = distances[k++];
+    ((pool[i].flags & primitive_flags::kProvisional) != 0 ? provisional : confirmed).push_back(d);
+    if ((pool[i].flags & primitive_flags::kProvisional) != 0 && pool[i].observation_count == 0) unobserved.push_back(d);
+    if (d > 1.0) {
+      ++summary->gross;
+      if ((pool[i].flags & primitive_flags::kProvisional) != 0) ++summary->gross_provisional;
+    }
+    if (pool[i].observation_count >= 2) updated2.push_back(d);
+  }
+  double unused = 0.0;
+  summary->provisional = provisional.size();
+  summary->provisional_unobserved = unobserved.size();
+  rms_p95(&unobserved, &summary->accuracy_rms_unobserved, &unused);
+  rms_p95(&confirmed, &summary->accuracy_rms_confirmed, &summary->accuracy_p95_confirmed);
+  rms_p95(&provisional, &summary->accuracy_rms_provisional, &unused);
+  rms_p95(&updated2, &summary->accuracy_rms_updated2, &unused);
+}
+
 double split_epsilon_for(const MissionOptions& options, double cell_size) {
   if (options.split_epsilon_cells > 0.0) return options.split_epsilon_cells;
   // With epsilon e the recursion halts at d <= 2e, so waypoints lie e..2e cells apart (0.75: 8-neighbours).
@@ -177,6 +212,9 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.unconsumed_after_rejections = options.unconsumed_after;
     fc.erase_unsearchable = !options.keep_unsearchable;
     fc.direct_fit_max_px = options.direct_fit_max_px;
+    fc.confirm_min_depth_information = options.confirm_depth_information;
+    fc.provisional_max_updates = options.provisional_max_updates;
+    fc.erase_provisional_rejected = options.erase_provisional_rejected;
     const Status s = g_front_end.configure(scene.intrinsics, fc);
     if (!ok(s)) throw sim::SimError(std::string("image front end configuration: ") + vantage::to_string(s));
     g_measurement.target = &g_front_end;
@@ -332,9 +370,11 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.model_coverage =
       setup.ground_truth->coverage(g_pool, g_goal.distance, std::numeric_limits<double>::infinity());
   double rms = 0.0, p95 = 0.0, max_error = 0.0;
-  setup.ground_truth->accuracy(g_pool, &rms, &p95, &max_error);
+  std::vector<double> distances;
+  setup.ground_truth->accuracy(g_pool, &rms, &p95, &max_error, &distances);
   summary.accuracy_rms = rms;
   summary.accuracy_p95 = p95;
+  split_accuracy(g_pool, distances, &summary);
   summary.planning_seconds = planning_seconds;
   summary.measurement_seconds = g_measurement.seconds;
   summary.render_seconds = rig.render_seconds;

@@ -38,6 +38,11 @@ struct MissionOptions {
   bool keep_unsearchable = false;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = 1.0;
+  // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and
+  // provisional_max_updates (0: keep them flagged). core/frontend/README.md, "Confirmation by parallax".
+  double confirm_depth_information = 1.0;
+  std::uint32_t provisional_max_updates = 0;
+  bool erase_provisional_rejected = false;  // FrontEndConfig::erase_provisional_rejected
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)

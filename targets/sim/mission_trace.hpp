@@ -49,6 +49,17 @@ struct MissionSummary {
   double mean_sigma = 0.0;                // PrecisionLevel, units
   double accuracy_rms = 0.0;              // ground truth, units
   double accuracy_p95 = 0.0;
+  // The same over primitives a view has confirmed (not primitive_flags::kProvisional), the count and RMS of
+  // the provisional ones, and the RMS over primitives with at least 2 accepted updates (tail-robust).
+  double accuracy_rms_confirmed = 0.0;
+  double accuracy_p95_confirmed = 0.0;
+  std::size_t provisional = 0;
+  double accuracy_rms_provisional = 0.0;
+  std::size_t provisional_unobserved = 0;    // of which no update accepted since the spawn
+  double accuracy_rms_unobserved = 0.0;
+  std::size_t gross = 0;                     // primitives more than 1 unit from the surface
+  std::size_t gross_provisional = 0;         // of which provisional
+  double accuracy_rms_updated2 = 0.0;
   std::size_t primitives = 0;
   bool reached_goal = false;
   std::string end_reason;                 // done reason or failure text

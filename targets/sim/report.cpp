@@ -232,6 +232,15 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"mean_sigma\": " << s.mean_sigma << ",\n"
       << "  \"accuracy_rms\": " << s.accuracy_rms << ",\n"
       << "  \"accuracy_p95\": " << s.accuracy_p95 << ",\n"
+      << "  \"accuracy_rms_confirmed\": " << s.accuracy_rms_confirmed << ",\n"
+      << "  \"accuracy_p95_confirmed\": " << s.accuracy_p95_confirmed << ",\n"
+      << "  \"provisional\": " << s.provisional << ",\n"
+      << "  \"accuracy_rms_provisional\": " << s.accuracy_rms_provisional << ",\n"
+      << "  \"provisional_unobserved\": " << s.provisional_unobserved << ",\n"
+      << "  \"accuracy_rms_unobserved\": " << s.accuracy_rms_unobserved << ",\n"
+      << "  \"gross\": " << s.gross << ",\n"
+      << "  \"gross_provisional\": " << s.gross_provisional << ",\n"
+      << "  \"accuracy_rms_updated2\": " << s.accuracy_rms_updated2 << ",\n"
       << "  \"primitives\": " << s.primitives << ",\n"
       << "  \"reached_goal\": " << (s.reached_goal ? "true" : "false") << ",\n"
       << "  \"failed\": " << (s.failed ? "true" : "false") << ",\n"
@@ -270,7 +279,8 @@ bool write_report(const std::string& dir, const MissionTrace& trace, const Missi
 
   note(write_text(file("summary.json"), summary_json(summary), &e), e);
 
-  // PLY: one vertex per primitive, colour by sigma, sigma as an extra property.
+  // PLY: one vertex per primitive, colour by sigma, sigma and the provisional flag (primitive_flags::kProvisional:
+  // no view has constrained its depth yet) as extra properties.
   {
     const SigmaScale scale = sigma_scale(pool, summary.sigma_target);
     std::ostringstream ply;
@@ -278,7 +288,7 @@ bool write_report(const std::string& dir, const MissionTrace& trace, const Missi
         << scale.hi << " units, log scale)\nelement vertex " << pool.size()
         << "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
            "property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float sigma\n"
-           "end_header\n";
+           "property uchar provisional\nend_header\n";
     for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
       if (!pool.is_alive(i)) continue;
       const Primitive& p = pool[i];
@@ -287,7 +297,7 @@ bool write_report(const std::string& dir, const MissionTrace& trace, const Missi
       ply << static_cast<float>(p.X_world.x()) << ' ' << static_cast<float>(p.X_world.y()) << ' '
           << static_cast<float>(p.X_world.z()) << ' ' << p.normal_world.x() << ' ' << p.normal_world.y() << ' '
           << p.normal_world.z() << ' ' << int(c.r) << ' ' << int(c.g) << ' ' << int(c.b) << ' ' << static_cast<float>(sigma)
-          << '\n';
+          << ' ' << ((p.flags & primitive_flags::kProvisional) != 0 ? 1 : 0) << '\n';
     }
     note(write_text(file("model.ply"), ply.str(), &e), e);
   }

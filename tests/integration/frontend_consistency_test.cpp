@@ -183,15 +183,17 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
   }
 }
 
-// The front end's primitives with at least min_updates updates against the seed ray's surface point.
+// The front end's primitives with at least min_updates updates against the seed ray's surface point;
+// provisional: -1 all, 0 only those a view has confirmed, 1 only primitive_flags::kProvisional ones.
 Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std::uint32_t min_updates, double matched,
-                           double predicted) {
+                           double predicted, int provisional = -1) {
   const PinholeIntrinsics& k = g_front_end.intrinsics();
   const double stride = config.seed_stride_px;
   Samples samples(scene.surface_distance);
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
     if (!g_pool.is_alive(i) || g_pool[i].observation_count < min_updates) continue;
     const Primitive& p = g_pool[i];
+    if (provisional >= 0 && ((p.flags & primitive_flags::kProvisional) != 0) != (provisional == 1)) continue;
     Viewpoint creating;
     REQUIRE(ok(g_front_end.view_pose(p.creating_view, &creating)));
     Eigen::Vector2d uv;
@@ -317,11 +319,16 @@ SceneRun run_scene(const Scene& scene) {
   run_front_end(scene, config, &matched, &predicted);
   out.all = evaluate_front_end(scene, config, 0, matched, predicted);
   out.tracked = evaluate_front_end(scene, config, 3, matched, predicted);
+  // Confirmation by parallax (core/frontend/README.md): "all" counts provisional primitives too.
+  const Figures confirmed = evaluate_front_end(scene, config, 0, matched, predicted, 0);
+  const Figures provisional = evaluate_front_end(scene, config, 0, matched, predicted, 1);
   out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations);
   out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations);
   print_match_consistency(scene, config, scene.views.size() - 1);
   print(scene.name, "front end, all primitives", out.all);
   print(scene.name, "front end, >= 3 updates", out.tracked);
+  print(scene.name, "front end, confirmed by parallax", confirmed);
+  print(scene.name, "front end, provisional", provisional);
   print(scene.name, "oracle (95% gate, EKF), all primitives", out.oracle);
   print(scene.name, "oracle (no gate, iterated EKF), all primitives", out.oracle_iterated);
   return out;
