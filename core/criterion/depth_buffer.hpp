@@ -66,6 +66,26 @@ inline float visibility_threshold(float iz_pixel, float radius, float tolerance_
 
 }  // namespace splat_math
 
+// Discs for DepthBufferView::splat_batch, world frame, structure of arrays (one lane per disc).
+inline constexpr std::int32_t kDiscBatchSize = 4;
+struct DiscBatch {
+  std::array<float, kDiscBatchSize> x{}, y{}, z{}, nx{}, ny{}, nz{}, radius{};
+  std::int32_t count = 0;
+
+  bool full() const { return count >= kDiscBatchSize; }
+  // Appends a disc (the caller flushes a full batch first).
+  void push(const Eigen::Vector3f& X_world, const Eigen::Vector3f& normal_world, float disc_radius) {
+    x[count] = X_world.x();
+    y[count] = X_world.y();
+    z[count] = X_world.z();
+    nx[count] = normal_world.x();
+    ny[count] = normal_world.y();
+    nz[count] = normal_world.z();
+    radius[count] = disc_radius;
+    ++count;
+  }
+};
+
 class DepthBufferView {
  public:
   DepthBufferView(const DepthBufferView&) = delete;
@@ -82,6 +102,13 @@ class DepthBufferView {
   // caller decides what occludes. Returns false (nothing written) when it is behind the camera, not
   // finite, or misses the image.
   bool splat(const Eigen::Vector3f& X_world, const Eigen::Vector3f& normal_world, float radius);
+  // splat() of each of the batch's discs in order, the projections computed four lanes at once with
+  // splat()'s arithmetic operation for operation (so the same pixels and values); empties the batch and
+  // returns how many discs were written.
+  std::int32_t splat_batch(DiscBatch& batch);
+  // is_visible() of each of the batch's discs ((*visible)[lane] for lane < count, the rest false), the
+  // projections four lanes at once with the same arithmetic.
+  void is_visible_batch(const DiscBatch& batch, std::array<bool, kDiscBatchSize>* visible) const;
   // See the file comment. False for non-finite input.
   bool is_visible(const Eigen::Vector3f& X_world, const Eigen::Vector3f& normal_world, float radius) const;
 

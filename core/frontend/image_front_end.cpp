@@ -39,6 +39,14 @@ std::int32_t floor_to_int(double value) {
   return truncated - (value < truncated ? 1 : 0);
 }
 
+// std::ceil without the library call for 0 <= value < 2^30 (the search windows' half sizes); anything
+// else (NaN, huge) goes to std::ceil.
+double ceil_small(double value) {
+  if (!(value >= 0.0 && value < 1073741824.0)) return std::ceil(value);
+  const std::int32_t truncated = static_cast<std::int32_t>(value);
+  return static_cast<double>(truncated + (truncated < value ? 1 : 0));
+}
+
 // Largest standard deviation bound: sqrt(trace Sigma) >= sqrt(lambda_max).
 double sigma_bound(const Eigen::Matrix3d& Sigma) { return std::sqrt(Sigma.trace()); }
 
@@ -200,8 +208,9 @@ void ImageFrontEnd::reset_cells() {
 }
 
 std::size_t ImageFrontEnd::cell_of(const Eigen::Vector2d& uv_px) const {
-  std::int32_t cx = static_cast<std::int32_t>(std::floor((uv_px.x() + 0.5) / config_.seed_stride_px));
-  std::int32_t cy = static_cast<std::int32_t>(std::floor((uv_px.y() + 0.5) / config_.seed_stride_px));
+  // uv_px lies inside the image (track()'s predictions): floor_to_int is floor here, without the libm call.
+  std::int32_t cx = floor_to_int((uv_px.x() + 0.5) / config_.seed_stride_px);
+  std::int32_t cy = floor_to_int((uv_px.y() + 0.5) / config_.seed_stride_px);
   cx = cx < 0 ? 0 : (cx >= cells_x_ ? cells_x_ - 1 : cx);
   cy = cy < 0 ? 0 : (cy >= cells_y_ ? cells_y_ - 1 : cy);
   return static_cast<std::size_t>(cy) * cells_x_ + cx;
@@ -300,21 +309,31 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   const double k_sigma = config_.occlusion_sigmas;
   const bool occlusion = config_.occlusion_enabled && ok(depth_buffer_.configure(view, intrinsics_));
   if (occlusion) {
+    // Four discs per splat_batch call (the same pixels and values as splat() one by one).
+    DiscBatch discs;
     for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
       if (!pool.is_alive(i)) continue;
       const Primitive& p = pool[i];
       const Eigen::Vector3d ray = (p.X_world - view.position_world).normalized();
       const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-      (void)depth_buffer_.splat((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
+      discs.push((p.X_world + k_sigma * sigma_ray * ray).cast<float>(), p.normal_world, p.radius);
+      if (discs.full()) (void)depth_buffer_.splat_batch(discs);
     }
+    (void)depth_buffer_.splat_batch(discs);
   }
   NccTemplate tmpl;
+  // The next few alive primitives' predictions, made ahead so their occlusion tests share one lane batch
+  // (nothing in this loop changes another primitive, so they are what the loop would compute).
+  PredictionBatch ahead;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i)) continue;
     Primitive& p = pool[i];
-    Eigen::Vector2d predicted;
-    Eigen::Matrix<double, 2, 3> H;
-    if (!predicted_in_view(p, view, occlusion, &predicted, &H)) {
+    if (ahead.next >= ahead.count || ahead.index[ahead.next] != i) predict_batch(i, view, occlusion, pool, &ahead);
+    const std::int32_t slot = ahead.next++;
+    // References into `ahead`: it is refilled only at a later primitive.
+    const Eigen::Vector2d& predicted = ahead.predicted[slot];
+    const Eigen::Matrix<double, 2, 3>& H = ahead.H[slot];
+    if (!ahead.in_view[slot]) {
       // Not even seen in the first image after its creation: nothing confirms it (confirm_spawns).
       if (p.observation_count == 0 && p.creating_view < next_view_index_) drop_unconfirmed(i, kNoCell, pool);
       continue;
@@ -386,8 +405,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.predicted_px = predicted;
       query.S_inv = S.inverse();
       query.gate_chi2 = 9.0;  // the 3-sigma ellipse
-      const double half_w = std::ceil(3.0 * std::sqrt(S(0, 0)));
-      const double half_h = std::ceil(3.0 * std::sqrt(S(1, 1)));
+      const double half_w = ceil_small(3.0 * std::sqrt(S(0, 0)));
+      const double half_h = ceil_small(3.0 * std::sqrt(S(1, 1)));
       const double cap = config_.max_search_half_window_px;
       beyond_search = half_w > cap || half_h > cap;
       query.half_width_px = static_cast<std::int32_t>(half_w < 1.0 ? 1.0 : (half_w > cap ? cap : half_w));
@@ -434,30 +453,14 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
-    TrackedObservation seen;
-    if (observer_ != nullptr) {
-      seen.index = i;
-      seen.prior = p;
-      seen.predicted_px = predicted;
-      seen.observed_px = observed;
-      seen.R_px2 = ekf.R_px2;
-      seen.warp_covariance_px2 = warp_covariance;
-      seen.common_covariance_px2 = common.covariance_px2;
-      seen.common_cross_covariance = common.cross_covariance;
-      seen.B = B;
-      seen.view = view;
-      seen.creating_view = creating;
-    }
     // A provisional primitive's prior, to tell whether this update constrained its depth.
     const bool provisional = (p.flags & primitive_flags::kProvisional) != 0;
     const Eigen::Matrix3d Sigma_prior = provisional ? p.Sigma_world : Eigen::Matrix3d::Zero();
     const Status updated =
-        iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
-                                 ProjectionAtPrior{predicted, H}, &stats_.ekf);
-    if (observer_ != nullptr) {
-      seen.outcome = updated;
-      observer_->on_observation(seen);
-    }
+        observer_ != nullptr
+            ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating)
+            : iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
+                                       ProjectionAtPrior{predicted, H}, &stats_.ekf);
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
     if (ok(updated)) {
       ++report.updated;
@@ -472,8 +475,32 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
   }
 }
 
-bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion,
-                                      Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H) const {
+Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
+                                      const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
+                                      const Eigen::Vector2d& observed, const EkfConfig& ekf,
+                                      const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
+                                      const Viewpoint& view, const Viewpoint& creating) {
+  TrackedObservation seen;
+  seen.index = i;
+  seen.prior = p;
+  seen.predicted_px = predicted;
+  seen.observed_px = observed;
+  seen.R_px2 = ekf.R_px2;
+  seen.warp_covariance_px2 = warp_covariance;
+  seen.common_covariance_px2 = common->covariance_px2;
+  seen.common_cross_covariance = common->cross_covariance;
+  seen.B = B;
+  seen.view = view;
+  seen.creating_view = creating;
+  seen.outcome = iterated_consider_update(p, common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
+                                          ProjectionAtPrior{predicted, H}, &stats_.ekf);
+  observer_->on_observation(seen);
+  return seen.outcome;
+}
+
+bool ImageFrontEnd::predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion,
+                                       Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H,
+                                       Eigen::Vector3f* pulled_world) const {
   if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, predicted, H))) return false;
   if (!in_image(*predicted, intrinsics_, kPatchRadius + 1.0)) return false;
   const Eigen::Vector3d to_camera = view.position_world - p.X_world;
@@ -484,8 +511,35 @@ bool ImageFrontEnd::predicted_in_view(const Primitive& p, const Viewpoint& view,
   // Pulled forward by its own uncertainty, it must not be behind the buffer.
   const Eigen::Vector3d ray = -to_camera / distance;
   const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-  return depth_buffer_.is_visible((p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>(), p.normal_world,
-                                  p.radius);
+  *pulled_world = (p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>();
+  return true;
+}
+
+void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, bool occlusion,
+                                  const PrimitivePoolView& pool, PredictionBatch* batch) const {
+  batch->count = 0;
+  batch->next = 0;
+  DiscBatch discs;
+  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
+  for (PrimitiveIndex i = first; i < pool.index_bound() && batch->count < kDiscBatchSize; ++i) {
+    if (!pool.is_alive(i)) continue;
+    const std::int32_t slot = batch->count++;
+    const Primitive& p = pool[i];
+    batch->index[slot] = i;
+    Eigen::Vector3f pulled;
+    batch->in_view[slot] = predicted_geometry(p, view, occlusion, &batch->predicted[slot], &batch->H[slot], &pulled);
+    lane_of[slot] = -1;
+    if (batch->in_view[slot] && occlusion) {
+      lane_of[slot] = discs.count;
+      discs.push(pulled, p.normal_world, p.radius);
+    }
+  }
+  if (discs.count == 0) return;
+  std::array<bool, kDiscBatchSize> visible;
+  depth_buffer_.is_visible_batch(discs, &visible);
+  for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+    if (lane_of[slot] >= 0) batch->in_view[slot] = visible[lane_of[slot]];
+  }
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,

@@ -228,6 +228,8 @@ class TrackObserver {
   ~TrackObserver() = default;
 };
 
+struct CommonObservationError;  // core/frontend/iterated_update.hpp
+
 class ImageFrontEnd final : public MeasurementSource {
  public:
   ImageFrontEnd() = default;
@@ -271,10 +273,23 @@ class ImageFrontEnd final : public MeasurementSource {
   std::size_t cell_of(const Eigen::Vector2d& uv_px) const;
   void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
-  // Whether p is predicted in view: in front, inside the image with the patch, facing the camera and,
-  // with occlusion, not behind the depth buffer. Its projection and Jacobian go to *predicted and *H.
-  bool predicted_in_view(const Primitive& p, const Viewpoint& view, bool occlusion, Eigen::Vector2d* predicted,
-                         Eigen::Matrix<double, 2, 3>* H) const;
+  // track()'s prediction of primitive p up to the occlusion test: projection and Jacobian, inside the
+  // image, facing the camera; with occlusion, *pulled_world is the point the occlusion test takes (the
+  // centre pulled toward the camera by its own uncertainty).
+  bool predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion, Eigen::Vector2d* predicted,
+                          Eigen::Matrix<double, 2, 3>* H, Eigen::Vector3f* pulled_world) const;
+  // Predictions of the next alive primitives from `first` on (up to kDiscBatchSize): predicted_geometry,
+  // then their occlusion tests in one lane batch (DepthBufferView::is_visible_batch).
+  struct PredictionBatch {
+    std::array<PrimitiveIndex, kDiscBatchSize> index{};
+    std::array<Eigen::Vector2d, kDiscBatchSize> predicted{};
+    std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H{};
+    std::array<bool, kDiscBatchSize> in_view{};  // predicted in the image and not occluded
+    std::int32_t count = 0;
+    std::int32_t next = 0;  // the slot track() takes next
+  };
+  void predict_batch(PrimitiveIndex first, const Viewpoint& view, bool occlusion, const PrimitivePoolView& pool,
+                     PredictionBatch* batch) const;
   // Estimates matched primitive i's normal photometrically (FrontEndConfig::photometric_normal) and
   // matches it again near *observed with the template warped by it; on success adopts the normal and its
   // tilt variance and replaces the template, B, the warp covariance, the match and its fit covariance. False: unchanged.
@@ -287,6 +302,13 @@ class ImageFrontEnd final : public MeasurementSource {
                                  Eigen::Matrix2d* fit_covariance);
   // Replaces a match's fit covariance by the one with the residuals' spatial correlation
   // (FrontEndConfig::correlated_fit_covariance) when that can be computed.
+  // The EKF update of a tracked primitive with the observer told (observer_ set): the TrackedObservation
+  // is built only here, not per primitive when nobody observes.
+  [[gnu::noinline]] Status observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
+                                           const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
+                                           const Eigen::Vector2d& observed, const EkfConfig& ekf,
+                                           const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
+                                           const Viewpoint& view, const Viewpoint& creating);
   void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
                                 Eigen::Matrix2d* fit_covariance) const;
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::

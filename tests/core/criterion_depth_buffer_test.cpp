@@ -1,4 +1,6 @@
+#include <array>
 #include <cmath>
+#include <cstdint>
 
 #include <catch2/catch.hpp>
 
@@ -127,4 +129,130 @@ TEST_CASE("depth buffer entry points do not allocate") {
                         g_buffer.splat(Eigen::Vector3f::Zero(), Eigen::Vector3f::UnitX(), 0.5f);
                         visible = g_buffer.is_visible(Eigen::Vector3f::Zero(), Eigen::Vector3f::UnitX(), 0.5f));
   CHECK(visible);
+}
+
+namespace {
+
+DepthBuffer<160, 120> g_batched;
+
+// Random discs around the origin, some grazing, back-facing, behind the camera, outside the image, huge
+// or non-finite, so every branch of project_disc and splat runs in the lanes.
+struct RandomDisc {
+  Eigen::Vector3f X;
+  Eigen::Vector3f n;
+  float radius;
+};
+
+RandomDisc random_disc(std::uint32_t* state) {
+  auto next = [state]() {
+    *state = *state * 1664525u + 1013904223u;
+    return static_cast<float>(*state >> 8) / 16777216.0f;  // [0, 1)
+  };
+  RandomDisc d;
+  d.X = Eigen::Vector3f(30.0f * next() - 15.0f, 12.0f * next() - 6.0f, 12.0f * next() - 6.0f);
+  d.n = Eigen::Vector3f(2.0f * next() - 1.0f, 2.0f * next() - 1.0f, 2.0f * next() - 1.0f).normalized();
+  d.radius = next() < 0.1f ? 3.0f * next() : 0.2f * next();
+  const float special = next();
+  if (special < 0.02f) d.X.y() = std::nanf("");
+  if (special > 0.98f) d.radius = -0.1f;
+  if (special > 0.96f && special <= 0.98f) d.n.z() = INFINITY;
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("batched splats and visibility tests equal the disc-by-disc ones") {
+  const PinholeIntrinsics k = test::test_intrinsics();
+  const Viewpoint view = view_from({20.0, 3.0, 2.0});
+  REQUIRE(ok(g_buffer.configure(view, k)));
+  REQUIRE(ok(g_batched.configure(view, k)));
+  std::uint32_t state = 7u;
+  std::int32_t written_single = 0;
+  std::int32_t written_batched = 0;
+  DiscBatch batch;
+  for (int d = 0; d < 2000; ++d) {
+    const RandomDisc disc = random_disc(&state);
+    written_single += g_buffer.splat(disc.X, disc.n, disc.radius) ? 1 : 0;
+    batch.push(disc.X, disc.n, disc.radius);
+    // Partial batches too: flush after 1, 2, 3 or 4 discs.
+    if (batch.full() || d % 7 == 0) written_batched += g_batched.splat_batch(batch);
+    CHECK(batch.count < kDiscBatchSize);
+  }
+  written_batched += g_batched.splat_batch(batch);
+  CHECK(batch.count == 0);
+  CHECK(written_single > 1000);
+  CHECK(written_batched == written_single);
+  std::int32_t differing = 0;
+  for (std::int32_t y = 0; y < g_buffer.height(); ++y) {
+    for (std::int32_t x = 0; x < g_buffer.width(); ++x) {
+      const float a = g_buffer.inverse_depth_at(x, y);
+      const float b = g_batched.inverse_depth_at(x, y);
+      // The same operations in the same order: equal bits where the compiler does not fuse a * b + c
+      // differently in the two (x86-64's baseline has no FMA; aarch64 may fuse).
+      if (std::abs(a - b) > 1e-5f * std::abs(a)) ++differing;
+    }
+  }
+  CHECK(differing == 0);
+  // Visibility of more random discs against the splatted scene, in batches of every size.
+  std::int32_t agree = 0;
+  std::int32_t visible_count = 0;
+  std::int32_t tested = 0;
+  for (int round = 0; round < 500; ++round) {
+    DiscBatch query;
+    std::array<bool, kDiscBatchSize> single{};
+    const std::int32_t size = 1 + round % kDiscBatchSize;
+    for (std::int32_t lane = 0; lane < size; ++lane) {
+      RandomDisc disc = random_disc(&state);
+      // Two in three face the camera (the rest are random, half of them back-facing).
+      if ((round + lane) % 3 != 0 && disc.n.allFinite()) {
+        disc.n = (Eigen::Vector3f(20.0f, 3.0f, 2.0f) - disc.X).normalized();
+      }
+      single[lane] = g_buffer.is_visible(disc.X, disc.n, disc.radius);
+      query.push(disc.X, disc.n, disc.radius);
+    }
+    std::array<bool, kDiscBatchSize> batched{};
+    batched.fill(true);
+    g_buffer.is_visible_batch(query, &batched);
+    for (std::int32_t lane = 0; lane < kDiscBatchSize; ++lane) {
+      if (lane >= size) {
+        CHECK_FALSE(batched[lane]);
+        continue;
+      }
+      ++tested;
+      agree += batched[lane] == single[lane] ? 1 : 0;
+      visible_count += single[lane] ? 1 : 0;
+    }
+  }
+  CHECK(visible_count >= 20);  // both outcomes occur (the splatted scene hides most discs)
+  CHECK(tested - visible_count >= 20);
+#if defined(__x86_64__)
+  CHECK(agree == tested);
+#else
+  CHECK(agree >= tested - 2);  // a fused multiply-add may move a disc across the tolerance
+#endif
+  // Not configured: nothing written, nothing visible.
+  DepthBuffer<8, 8> unconfigured;
+  DiscBatch one;
+  one.push(Eigen::Vector3f::Zero(), Eigen::Vector3f::UnitX(), 0.5f);
+  std::array<bool, kDiscBatchSize> flags{};
+  flags.fill(true);
+  unconfigured.is_visible_batch(one, &flags);
+  CHECK_FALSE(flags[0]);
+  CHECK(unconfigured.splat_batch(one) == 0);
+  CHECK(one.count == 0);
+}
+
+TEST_CASE("batched depth buffer entry points do not allocate") {
+  const PinholeIntrinsics k = test::test_intrinsics();
+  REQUIRE(ok(g_batched.configure(view_from({20.0, 0.0, 0.0}), k)));
+  DiscBatch batch;
+  batch.push(Eigen::Vector3f::Zero(), Eigen::Vector3f::UnitX(), 0.5f);
+  batch.push(Eigen::Vector3f(0.0f, 1.0f, 0.0f), Eigen::Vector3f::UnitX(), 0.5f);
+  std::array<bool, kDiscBatchSize> visible{};
+  std::int32_t written = 0;
+  REQUIRE_NO_ALLOCATION(written = g_batched.splat_batch(batch); batch.push(Eigen::Vector3f::Zero(),
+                                                                          Eigen::Vector3f::UnitX(), 0.5f);
+                        g_batched.is_visible_batch(batch, &visible));
+  CHECK(written == 2);
+  CHECK(visible[0]);
 }
