@@ -417,6 +417,7 @@ TEST_CASE("the photometric normal's decrement stop stays within the estimate's o
   int compared = 0;
   for_each_grid_query(7, [&](const TwoViews& scene, const GrayImageView& target_image,
                              const std::array<std::uint8_t, kPatchPixels>& patch, PhotometricNormalQuery query) {
+    query.stop_decrement = 0.0;  // the full run: the step-length rule only
     PhotometricNormalEstimate full;
     if (!ok(estimate_photometric_normal(target_image, patch, query, scene.k, &full))) return;
     query.stop_decrement = 1e-2;
