@@ -148,9 +148,13 @@ RandomDisc random_disc(std::uint32_t* state) {
     *state = *state * 1664525u + 1013904223u;
     return static_cast<float>(*state >> 8) / 16777216.0f;  // [0, 1)
   };
+  // One draw per statement: the order in which a call's arguments are evaluated is unspecified (GCC
+  // draws them right to left on x86-64, left to right on aarch64, which gave the two different scenes).
+  float draws[6];
+  for (float& draw : draws) draw = next();
   RandomDisc d;
-  d.X = Eigen::Vector3f(30.0f * next() - 15.0f, 12.0f * next() - 6.0f, 12.0f * next() - 6.0f);
-  d.n = Eigen::Vector3f(2.0f * next() - 1.0f, 2.0f * next() - 1.0f, 2.0f * next() - 1.0f).normalized();
+  d.X = Eigen::Vector3f(30.0f * draws[0] - 15.0f, 12.0f * draws[1] - 6.0f, 12.0f * draws[2] - 6.0f);
+  d.n = Eigen::Vector3f(2.0f * draws[3] - 1.0f, 2.0f * draws[4] - 1.0f, 2.0f * draws[5] - 1.0f).normalized();
   d.radius = next() < 0.1f ? 3.0f * next() : 0.2f * next();
   const float special = next();
   if (special < 0.02f) d.X.y() = std::nanf("");
@@ -204,9 +208,11 @@ TEST_CASE("batched splats and visibility tests equal the disc-by-disc ones") {
     for (std::int32_t lane = 0; lane < size; ++lane) {
       RandomDisc disc = random_disc(&state);
       // Two in three face the camera (the rest are random, half of them back-facing).
-      if ((round + lane) % 3 != 0 && disc.n.allFinite()) {
-        disc.n = (Eigen::Vector3f(20.0f, 3.0f, 2.0f) - disc.X).normalized();
-      }
+      const Eigen::Vector3f camera(20.0f, 3.0f, 2.0f);
+      if ((round + lane) % 3 != 0 && disc.n.allFinite()) disc.n = (camera - disc.X).normalized();
+      // One in three of those moved a quarter of the way to the camera, in front of most of the splatted
+      // scene, so that both outcomes are common.
+      if ((round + lane) % 3 == 1) disc.X = camera + 0.25f * (disc.X - camera);
       single[lane] = g_buffer.is_visible(disc.X, disc.n, disc.radius);
       query.push(disc.X, disc.n, disc.radius);
     }
@@ -223,8 +229,8 @@ TEST_CASE("batched splats and visibility tests equal the disc-by-disc ones") {
       visible_count += single[lane] ? 1 : 0;
     }
   }
-  CHECK(visible_count >= 20);  // both outcomes occur (the splatted scene hides most discs)
-  CHECK(tested - visible_count >= 20);
+  CHECK(visible_count >= 100);  // both outcomes are common (201 visible of 1,250 on x86-64)
+  CHECK(tested - visible_count >= 100);
 #if defined(__x86_64__)
   CHECK(agree == tested);
 #else
