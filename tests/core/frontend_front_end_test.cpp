@@ -10,7 +10,6 @@
 #include "tests/support/no_allocation.hpp"
 
 using namespace vantage;
-using vantage::test::TexturedPlane;
 
 namespace {
 
@@ -25,15 +24,7 @@ FrontEndConfig plane_config() {
   return config;
 }
 
-struct Scene {
-  PinholeIntrinsics k = vantage::test::small_intrinsics();
-  TexturedPlane plane;
-  std::vector<std::uint8_t> render(const Viewpoint& view) const {
-    std::vector<std::uint8_t> pixels;
-    vantage::test::render_plane(plane, view, k, &pixels);
-    return pixels;
-  }
-};
+using Scene = vantage::test::PlaneScene;
 
 // Distance of a primitive's position from the plane x = 0, in units of its standard deviation along x.
 double normalized_plane_error(const Primitive& p) { return p.X_world.x() / std::sqrt(p.Sigma_world(0, 0)); }
@@ -71,13 +62,8 @@ Viewpoint third_view() { return vantage::test::looking_at_origin({38.0, -6.0, 10
 
 void initialize_on_plane(const Scene& scene, const Viewpoint& first, const Viewpoint& second,
                          const FrontEndConfig& config = plane_config()) {
-  g_pool.clear();
-  REQUIRE(ok(g_front_end.configure(scene.k, config)));
-  const auto a = scene.render(first);
-  const auto b = scene.render(second);
   UpdateReport report;
-  REQUIRE(ok(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(b, scene.k),
-                                    second, g_pool, &report)));
+  REQUIRE(ok(vantage::test::initialize_on_plane(g_front_end, g_pool, scene, first, second, config, &report)));
   REQUIRE(report.spawned > 200);
 }
 

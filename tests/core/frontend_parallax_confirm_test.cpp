@@ -12,22 +12,13 @@
 #include "tests/support/no_allocation.hpp"
 
 using namespace vantage;
-using vantage::test::TexturedPlane;
 
 namespace {
 
 ImageFrontEnd g_front_end;  // static storage, as in a target
 PrimitivePool<8192> g_pool;
 
-struct Scene {
-  PinholeIntrinsics k = vantage::test::small_intrinsics();
-  TexturedPlane plane;  // x = 0, seen from +x
-  std::vector<std::uint8_t> render(const Viewpoint& view) const {
-    std::vector<std::uint8_t> pixels;
-    vantage::test::render_plane(plane, view, k, &pixels);
-    return pixels;
-  }
-};
+using Scene = vantage::test::PlaneScene;  // the plane x = 0, seen from +x
 
 const Eigen::Vector3d kFirst{40.0, 0.0, 0.0};
 
@@ -43,15 +34,10 @@ FrontEndConfig config_with(double depth_information, std::uint32_t max_updates =
 bool provisional(const Primitive& p) { return (p.flags & primitive_flags::kProvisional) != 0; }
 
 void initialize(const Scene& scene, const FrontEndConfig& config) {
-  g_pool.clear();
-  REQUIRE(ok(g_front_end.configure(scene.k, config)));
   const Viewpoint first = vantage::test::looking_at_origin(kFirst);
   const Viewpoint second = vantage::test::looking_at_origin({39.95, 2.0, 0.0});
-  const auto a = scene.render(first);
-  const auto b = scene.render(second);
   UpdateReport report;
-  REQUIRE(ok(g_front_end.initialize(vantage::test::view_of(a, scene.k), first, vantage::test::view_of(b, scene.k),
-                                    second, g_pool, &report)));
+  REQUIRE(ok(vantage::test::initialize_on_plane(g_front_end, g_pool, scene, first, second, config, &report)));
   REQUIRE(report.spawned > 200);
 }
 

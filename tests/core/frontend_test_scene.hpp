@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "core/frontend/image_front_end.hpp"
 #include "core/geometry/pinhole_intrinsics.hpp"
 #include "core/geometry/projection.hpp"
 #include "core/geometry/viewpoint.hpp"
@@ -127,6 +128,30 @@ inline Viewpoint looking_at_origin(const Eigen::Vector3d& position) {
   Viewpoint view;
   (void)look_at(position, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &view);
   return view;
+}
+
+// The textured plane x = 0 in the small camera, as most front-end tests image it.
+struct PlaneScene {
+  PinholeIntrinsics k = small_intrinsics();
+  TexturedPlane plane;
+  std::vector<std::uint8_t> render(const Viewpoint& view) const {
+    std::vector<std::uint8_t> pixels;
+    render_plane(plane, view, k, &pixels);
+    return pixels;
+  }
+};
+
+// configure() with config, then initialize() from the plane's images at first and second (the pool
+// cleared first); the first failing status, with the spawn counts in *report.
+inline Status initialize_on_plane(ImageFrontEnd& front_end, PrimitivePoolView& pool, const PlaneScene& scene,
+                                  const Viewpoint& first, const Viewpoint& second, const FrontEndConfig& config,
+                                  UpdateReport* report) {
+  pool.clear();
+  const Status configured = front_end.configure(scene.k, config);
+  if (!ok(configured)) return configured;
+  const auto a = scene.render(first);
+  const auto b = scene.render(second);
+  return front_end.initialize(view_of(a, scene.k), first, view_of(b, scene.k), second, pool, report);
 }
 
 }  // namespace vantage::test
