@@ -611,7 +611,7 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   if (p.observation_count == 0) drop_unconfirmed(i, centre_cell, pool);
   if (pool.is_alive(i) && config_.erase_provisional_rejected && (p.flags & primitive_flags::kProvisional) != 0 &&
       depth_would_show(p, tracking_view_)) {
-    erase_provisional(i, centre_cell, pool, report);
+    erase_tracked(i, centre_cell, pool, report, &stats_.provisional_erased);
   }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
@@ -642,13 +642,13 @@ void ImageFrontEnd::judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& S
     return;
   }
   if (config_.provisional_max_updates == 0 || p.observation_count < config_.provisional_max_updates) return;
-  erase_provisional(i, centre_cell, pool, report);
+  erase_tracked(i, centre_cell, pool, report, &stats_.provisional_erased);
 }
 
-void ImageFrontEnd::erase_provisional(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
-                                      UpdateReport& report) {
+void ImageFrontEnd::erase_tracked(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool,
+                                  UpdateReport& report, std::uint64_t* erased_count) {
   if (!ok(pool.erase(i))) return;
-  ++stats_.provisional_erased;
+  ++*erased_count;
   ++report.gated_erased;
   if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
   forget_cell(i, centre_cell);
@@ -683,11 +683,7 @@ void ImageFrontEnd::count_rejection(PrimitiveIndex i, std::size_t centre_cell, P
   if (unconsumed) pool[i].flags |= primitive_flags::kUnconsumed;
   const bool unsearchable = unconsumed && beyond_search && config_.erase_unsearchable;
   if (!unsearchable && (erase_at == 0 || rejected_in_a_row_[i] < erase_at)) return;
-  if (!ok(pool.erase(i))) return;
-  rejected_in_a_row_[i] = 0;
-  ++(unsearchable ? stats_.unsearchable_erased : stats_.gated_erased);
-  ++report.gated_erased;
-  forget_cell(i, centre_cell);
+  erase_tracked(i, centre_cell, pool, report, unsearchable ? &stats_.unsearchable_erased : &stats_.gated_erased);
 }
 
 void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool) {

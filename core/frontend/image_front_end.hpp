@@ -331,8 +331,10 @@ class ImageFrontEnd final : public MeasurementSource {
   // major axis when null), erases it at provisional_max_updates otherwise (FrontEndConfig).
   void judge_provisional(PrimitiveIndex i, const Eigen::Matrix3d& Sigma_prior, const Viewpoint* creating,
                          std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
-  // Erases provisional primitive i (FrontEndStats::provisional_erased, UpdateReport::gated_erased).
-  void erase_provisional(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report);
+  // Erases tracked primitive i, counted in *erased_count (a FrontEndStats field) and UpdateReport::gated_erased,
+  // and forgets its rejections and its cell (track loss, unsearchable, provisional).
+  void erase_tracked(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
+                     std::uint64_t* erased_count);
   // Whether provisional primitive p's seed-ray uncertainty projects into view to at least
   // sqrt(confirm_min_depth_information) standard deviations of ekf.R_px2 (erase_provisional_rejected).
   bool depth_would_show(const Primitive& p, const Viewpoint& view) const;
