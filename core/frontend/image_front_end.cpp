@@ -87,7 +87,8 @@ Eigen::Matrix2d spawn_warp_covariance(const NccTemplate& tmpl, const Eigen::Vect
 
 }  // namespace
 
-Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
+// inline: two or three calls per match, a handful of operations each.
+inline Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
   if (!config_.adaptive_R || !fit_covariance_px2.allFinite()) return config_.ekf.R_px2;
   const double floor = config_.match_sigma_floor_px * config_.match_sigma_floor_px;
   return fit_covariance_px2 + floor * Eigen::Matrix2d::Identity();

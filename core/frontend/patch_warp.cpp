@@ -233,19 +233,41 @@ Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen
 
 namespace {
 
+// {sum_lanes(a), sum_lanes(b), sum_lanes(c), sum_lanes(d)}: the four vectors transposed, then each lane
+// adds (v0 + v1) + (v2 + v3) as sum_lanes does, so the same bits in a third of the instructions.
+inline Float4 sum_lanes_of_four(Float4 a, Float4 b, Float4 c, Float4 d) {
+  const Float4 ab_low = __builtin_shufflevector(a, b, 0, 4, 1, 5);   // a0 b0 a1 b1
+  const Float4 cd_low = __builtin_shufflevector(c, d, 0, 4, 1, 5);   // c0 d0 c1 d1
+  const Float4 ab_high = __builtin_shufflevector(a, b, 2, 6, 3, 7);  // a2 b2 a3 b3
+  const Float4 cd_high = __builtin_shufflevector(c, d, 2, 6, 3, 7);  // c2 d2 c3 d3
+  const Float4 lane0 = __builtin_shufflevector(ab_low, cd_low, 0, 1, 4, 5);
+  const Float4 lane1 = __builtin_shufflevector(ab_low, cd_low, 2, 3, 6, 7);
+  const Float4 lane2 = __builtin_shufflevector(ab_high, cd_high, 0, 1, 4, 5);
+  const Float4 lane3 = __builtin_shufflevector(ab_high, cd_high, 2, 3, 6, 7);
+  return (lane0 + lane1) + (lane2 + lane3);
+}
+
 // The moments from the lane sums of g g^T (xx, xy, yy) of the two lane groups of each row (columns
 // x = -3..0 and 1..4) and the running sums of their cumulative row sums Q (sum_rows P_k =
 // sum_y (4 - y) r_y, so My = 4 G - Q), all scaled by `scale`.
 void moments_from_lanes(const Float4 (&g_acc)[2][3], const Float4 (&q_acc)[2][3], double scale,
                         TemplateGradientMoments* out) {
   const Float4 x_of_lane[2] = {Float4{-3.0f, -2.0f, -1.0f, 0.0f}, Float4{1.0f, 2.0f, 3.0f, 4.0f}};
+  // The nine lane sums four at a time (sum_lanes_of_four: the same bits as sum_lanes one by one).
+  const Float4 g_sums = sum_lanes_of_four(g_acc[0][0] + g_acc[1][0], g_acc[0][1] + g_acc[1][1],
+                                          g_acc[0][2] + g_acc[1][2], q_acc[0][0] + q_acc[1][0]);
+  const Float4 x_sums = sum_lanes_of_four(g_acc[0][0] * x_of_lane[0] + g_acc[1][0] * x_of_lane[1],
+                                          g_acc[0][1] * x_of_lane[0] + g_acc[1][1] * x_of_lane[1],
+                                          g_acc[0][2] * x_of_lane[0] + g_acc[1][2] * x_of_lane[1],
+                                          q_acc[0][1] + q_acc[1][1]);
+  const double q_sums[3] = {g_sums[3], x_sums[3], sum_lanes(q_acc[0][2] + q_acc[1][2])};
   double G[3];
   double Mx[3];
   double My[3];
   for (int j = 0; j < 3; ++j) {
-    const double g = sum_lanes(g_acc[0][j] + g_acc[1][j]);
-    Mx[j] = scale * sum_lanes(g_acc[0][j] * x_of_lane[0] + g_acc[1][j] * x_of_lane[1]);
-    My[j] = scale * (4.0 * g - sum_lanes(q_acc[0][j] + q_acc[1][j]));
+    const double g = g_sums[j];
+    Mx[j] = scale * x_sums[j];
+    My[j] = scale * (4.0 * g - q_sums[j]);
     G[j] = scale * g;
   }
   out->G << G[0], G[1], G[1], G[2];
@@ -287,11 +309,13 @@ void moments_from_unmasked_lanes(const UnmaskedLanes& s, TemplateGradientMoments
   const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
   const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
   constexpr double kQuarter = 0.25;  // (2 g)^2
-  const double G[3] = {kQuarter * sum_lanes(s.xx0 + s.xx1), kQuarter * sum_lanes(s.xy0 + s.xy1),
-                       kQuarter * sum_lanes(s.yy0 + s.yy1)};
-  const double Mx[3] = {kQuarter * sum_lanes(s.xx0 * x0 + s.xx1 * x1), kQuarter * sum_lanes(s.xy0 * x0 + s.xy1 * x1),
-                        kQuarter * sum_lanes(s.yy0 * x0 + s.yy1 * x1)};
-  const double My[3] = {kQuarter * sum_lanes(s.xx_y), kQuarter * sum_lanes(s.xy_y), kQuarter * sum_lanes(s.yy_y)};
+  // The nine lane sums, four at a time: {G xx, G xy, G yy, My xx}, {Mx xx, Mx xy, Mx yy, My xy}, My yy.
+  const Float4 first = sum_lanes_of_four(s.xx0 + s.xx1, s.xy0 + s.xy1, s.yy0 + s.yy1, s.xx_y);
+  const Float4 second = sum_lanes_of_four(s.xx0 * x0 + s.xx1 * x1, s.xy0 * x0 + s.xy1 * x1, s.yy0 * x0 + s.yy1 * x1,
+                                          s.xy_y);
+  const double G[3] = {kQuarter * first[0], kQuarter * first[1], kQuarter * first[2]};
+  const double Mx[3] = {kQuarter * second[0], kQuarter * second[1], kQuarter * second[2]};
+  const double My[3] = {kQuarter * first[3], kQuarter * second[3], kQuarter * sum_lanes(s.yy_y)};
   out->G << G[0], G[1], G[1], G[2];
   out->Mx << Mx[0], Mx[1], Mx[1], Mx[2];
   out->My << My[0], My[1], My[1], My[2];
