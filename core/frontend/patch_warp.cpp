@@ -351,24 +351,40 @@ void unmasked_lanes4(const float* v, UnmaskedLanes* out) {
 }
 
 #if VANTAGE_PATCH_WARP_HAS_AVX
-// The same pass with a row's two groups as one 8-lane AVX vector: each lane does the four-lane form's
-// operations in its order (group 0's products with 1 are exact; AVX without FMA, so nothing is
-// contracted), so the same bits. Chosen at run time (use_avx2).
-__attribute__((target("avx2"))) void unmasked_lanes8(const float* v, UnmaskedLanes* out) {
+// The same pass with a row's two groups as one 8-lane AVX vector, straight from the template's rows (no
+// framed copy): the frame's extrapolated columns and rows are made in the registers by the frame's own
+// operation (2 v_0 - v_1, per lane), so every lane holds the value the framed copy would hold, and each
+// lane does the four-lane form's operations in its order (group 0's products with 1 are exact; AVX
+// without FMA, so nothing is contracted): the same bits. Lane 7 (the frame column) holds some finite
+// value of the template and is multiplied by zero as before; its +-0 products cannot change a sum that
+// starts at +0. Chosen at run time (use_avx2).
+__attribute__((target("avx2"))) void unmasked_lanes8(const float* values, UnmaskedLanes* out) {
   // No lambdas: they would not inherit the target attribute.
   using Float8 = float __attribute__((vector_size(32)));
   const Float8 last_lane_off = Float8{1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+  const Float8 two = Float8{} + 2.0f;
+  // rows[1 + ty] = template row ty in lanes 0-6 (lane 7: the next row's first value; the last row is read
+  // one value early and moved down a lane, so nothing past the template is read); rows[0] and rows[8]
+  // the extrapolated frame rows.
+  Float8 rows[kPatchSize + 2];
+  for (int ty = 0; ty + 1 < kPatchSize; ++ty) __builtin_memcpy(&rows[ty + 1], &values[ty * kPatchSize], sizeof(Float8));
+  Float8 last;
+  __builtin_memcpy(&last, &values[(kPatchSize - 1) * kPatchSize - 1], sizeof last);
+  rows[kPatchSize] = __builtin_shufflevector(last, last, 1, 2, 3, 4, 5, 6, 7, 7);
+  rows[0] = two * rows[1] - rows[2];
+  rows[kPatchSize + 1] = two * rows[kPatchSize] - rows[kPatchSize - 1];
   Float8 xx = Float8{}, xy = xx, yy = xx;
   Float4 xx_y = Float4{}, xy_y = xx_y, yy_y = xx_y;
   for (int ty = 0; ty < kPatchSize; ++ty) {
-    const int c0 = (ty + 1) * kFrameStride + 1;
-    Float8 forward_x, back_x, forward_y, back_y;
-    __builtin_memcpy(&forward_x, &v[c0 + 1], sizeof forward_x);
-    __builtin_memcpy(&back_x, &v[c0 - 1], sizeof back_x);
-    __builtin_memcpy(&forward_y, &v[c0 + kFrameStride], sizeof forward_y);
-    __builtin_memcpy(&back_y, &v[c0 - kFrameStride], sizeof back_y);
+    const Float8 row = rows[ty + 1];
+    const Float8 ahead = __builtin_shufflevector(row, row, 1, 2, 3, 4, 5, 6, 7, 7);   // v_{x+1}, x = 0..5
+    const Float8 behind = __builtin_shufflevector(row, row, 0, 0, 1, 2, 3, 4, 5, 6);  // v_{x-1}, x = 1..6
+    const Float8 left_end = two * row - ahead;    // lane 0: 2 v_0 - v_1, the frame's column -1
+    const Float8 right_end = two * row - behind;  // lane 6: 2 v_6 - v_5, the frame's column 7
+    const Float8 forward_x = __builtin_shufflevector(ahead, right_end, 0, 1, 2, 3, 4, 5, 14, 7);
+    const Float8 back_x = __builtin_shufflevector(behind, left_end, 8, 1, 2, 3, 4, 5, 6, 7);
     const Float8 gx = (forward_x - back_x) * last_lane_off;
-    const Float8 gy = (forward_y - back_y) * last_lane_off;
+    const Float8 gy = (rows[ty + 2] - rows[ty]) * last_lane_off;
     const Float8 pxx = gx * gx, pxy = gx * gy, pyy = gy * gy;
     xx += pxx;
     xy += pxy;
@@ -464,13 +480,17 @@ __attribute__((target("avx2"))) void masked_lanes8(const float* v, const float* 
 #endif
 
 void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, MatchKernel kernel) {
-  alignas(32) float v[kFrameRows * kFrameStride];
-  frame_extrapolated(tmpl, v);
   UnmaskedLanes lanes;
   (void)kernel;  // the baseline's only pass on other targets
 #if VANTAGE_PATCH_WARP_HAS_AVX
-  if (use_avx2(kernel)) unmasked_lanes8(v, &lanes); else
+  if (use_avx2(kernel)) {
+    unmasked_lanes8(tmpl.values.data(), &lanes);  // frames the rows in its registers
+    moments_from_unmasked_lanes(lanes, out);
+    return;
+  }
 #endif
+  alignas(32) float v[kFrameRows * kFrameStride];
+  frame_extrapolated(tmpl, v);
   unmasked_lanes4(v, &lanes);
   moments_from_unmasked_lanes(lanes, out);
 }
