@@ -305,7 +305,8 @@ struct UnmaskedLanes {
   Float4 xx0, xy0, yy0, xx1, xy1, yy1, xx_y, xy_y, yy_y;
 };
 
-void moments_from_unmasked_lanes(const UnmaskedLanes& s, TemplateGradientMoments* out) {
+inline __attribute__((always_inline)) void moments_from_unmasked_lanes(const UnmaskedLanes& s,
+                                                                        TemplateGradientMoments* out) {
   const Float4 x0 = Float4{-3.0f, -2.0f, -1.0f, 0.0f};
   const Float4 x1 = Float4{1.0f, 2.0f, 3.0f, 4.0f};
   constexpr double kQuarter = 0.25;  // (2 g)^2
@@ -358,7 +359,7 @@ void unmasked_lanes4(const float* v, UnmaskedLanes* out) {
 // without FMA, so nothing is contracted): the same bits. Lane 7 (the frame column) holds some finite
 // value of the template and is multiplied by zero as before; its +-0 products cannot change a sum that
 // starts at +0. Chosen at run time (use_avx2).
-__attribute__((target("avx2"))) void unmasked_lanes8(const float* values, UnmaskedLanes* out) {
+__attribute__((target("avx2"))) void unmasked_moments8(const float* values, TemplateGradientMoments* moments) {
   // No lambdas: they would not inherit the target attribute.
   using Float8 = float __attribute__((vector_size(32)));
   const Float8 last_lane_off = Float8{1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
@@ -395,10 +396,13 @@ __attribute__((target("avx2"))) void unmasked_lanes8(const float* values, Unmask
     xy_y += y * (__builtin_shufflevector(pxy, pxy, 0, 1, 2, 3) + __builtin_shufflevector(pxy, pxy, 4, 5, 6, 7));
     yy_y += y * (__builtin_shufflevector(pyy, pyy, 0, 1, 2, 3) + __builtin_shufflevector(pyy, pyy, 4, 5, 6, 7));
   }
-  *out = UnmaskedLanes{__builtin_shufflevector(xx, xx, 0, 1, 2, 3), __builtin_shufflevector(xy, xy, 0, 1, 2, 3),
-                       __builtin_shufflevector(yy, yy, 0, 1, 2, 3), __builtin_shufflevector(xx, xx, 4, 5, 6, 7),
-                       __builtin_shufflevector(xy, xy, 4, 5, 6, 7), __builtin_shufflevector(yy, yy, 4, 5, 6, 7),
-                       xx_y, xy_y, yy_y};
+  // Reduced here, inlined into this function (its lanes stay in registers).
+  moments_from_unmasked_lanes(
+      UnmaskedLanes{__builtin_shufflevector(xx, xx, 0, 1, 2, 3), __builtin_shufflevector(xy, xy, 0, 1, 2, 3),
+                    __builtin_shufflevector(yy, yy, 0, 1, 2, 3), __builtin_shufflevector(xx, xx, 4, 5, 6, 7),
+                    __builtin_shufflevector(xy, xy, 4, 5, 6, 7), __builtin_shufflevector(yy, yy, 4, 5, 6, 7),
+                    xx_y, xy_y, yy_y},
+      moments);
 }
 #endif
 
@@ -480,17 +484,16 @@ __attribute__((target("avx2"))) void masked_lanes8(const float* v, const float* 
 #endif
 
 void unmasked_moments(const NccTemplate& tmpl, TemplateGradientMoments* out, MatchKernel kernel) {
-  UnmaskedLanes lanes;
   (void)kernel;  // the baseline's only pass on other targets
 #if VANTAGE_PATCH_WARP_HAS_AVX
   if (use_avx2(kernel)) {
-    unmasked_lanes8(tmpl.values.data(), &lanes);  // frames the rows in its registers
-    moments_from_unmasked_lanes(lanes, out);
+    unmasked_moments8(tmpl.values.data(), out);  // frames the rows in its registers
     return;
   }
 #endif
   alignas(32) float v[kFrameRows * kFrameStride];
   frame_extrapolated(tmpl, v);
+  UnmaskedLanes lanes;
   unmasked_lanes4(v, &lanes);
   moments_from_unmasked_lanes(lanes, out);
 }
