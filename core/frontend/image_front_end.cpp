@@ -500,10 +500,8 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
 }
 
 bool ImageFrontEnd::predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion,
-                                       Eigen::Vector2d* predicted, Eigen::Matrix<double, 2, 3>* H,
-                                       Eigen::Vector3f* pulled_world) const {
-  if (!ok(project_with_jacobian(p.X_world, view, intrinsics_, predicted, H))) return false;
-  if (!in_image(*predicted, intrinsics_, kPatchRadius + 1.0)) return false;
+                                       const Eigen::Vector2d& predicted, Eigen::Vector3f* pulled_world) const {
+  if (!in_image(predicted, intrinsics_, kPatchRadius + 1.0)) return false;
   const Eigen::Vector3d to_camera = view.position_world - p.X_world;
   const double distance = to_camera.norm();
   const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
@@ -520,15 +518,23 @@ void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, b
                                   const PrimitivePoolView& pool, PredictionBatch* batch) const {
   batch->count = 0;
   batch->next = 0;
-  DiscBatch discs;
-  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
+  static_assert(kDiscBatchSize == kProjectionBatchSize, "one projection batch per prediction batch");
+  std::array<const Eigen::Vector3d*, kDiscBatchSize> points{};
   for (PrimitiveIndex i = first; i < pool.index_bound() && batch->count < kDiscBatchSize; ++i) {
     if (!pool.is_alive(i)) continue;
-    const std::int32_t slot = batch->count++;
-    const Primitive& p = pool[i];
-    batch->index[slot] = i;
+    batch->index[batch->count] = i;
+    points[batch->count++] = &pool[i].X_world;
+  }
+  // The projections and Jacobians of the batch at once (the same bits as one by one).
+  std::array<Status, kDiscBatchSize> projected{};
+  project_with_jacobian_batch(points.data(), batch->count, view, intrinsics_, batch->predicted.data(), batch->H.data(),
+                              projected.data());
+  DiscBatch discs;
+  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
+  for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+    const Primitive& p = pool[batch->index[slot]];
     Eigen::Vector3f pulled;
-    batch->in_view[slot] = predicted_geometry(p, view, occlusion, &batch->predicted[slot], &batch->H[slot], &pulled);
+    batch->in_view[slot] = ok(projected[slot]) && predicted_geometry(p, view, occlusion, batch->predicted[slot], &pulled);
     lane_of[slot] = -1;
     if (batch->in_view[slot] && occlusion) {
       lane_of[slot] = discs.count;
