@@ -430,10 +430,17 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     Eigen::Matrix<double, 2, 3> H_creating;
     const bool have_creating = ok(view_pose(p.creating_view, &creating));
     if (have_creating) {
-      // The map and its tilt derivatives from the creating view's Jacobian and this view's (H).
-      Eigen::Vector2d in_creating;
-      if (!ok(project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating)) ||
-          !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
+      // The map and its tilt derivatives from the creating view's Jacobian (from the batch where it made
+      // them) and this view's (H).
+      Status projected = Status::kOk;
+      if (ahead.creating_projected) {
+        H_creating = ahead.H_creating[slot];
+        projected = ahead.creating_status[slot];
+      } else {
+        Eigen::Vector2d in_creating;
+        projected = project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating);
+      }
+      if (!ok(projected) || !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         reject_observation(i, centre_cell, pool, report);
         continue;
@@ -608,12 +615,27 @@ void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, b
       discs.push(pulled, p.normal_world, p.radius);
     }
   }
-  if (discs.count == 0) return;
-  std::array<bool, kDiscBatchSize> visible;
-  depth_buffer_.is_visible_batch(discs, &visible);
-  for (std::int32_t slot = 0; slot < batch->count; ++slot) {
-    if (lane_of[slot] >= 0) batch->in_view[slot] = visible[lane_of[slot]];
+  if (discs.count > 0) {
+    std::array<bool, kDiscBatchSize> visible;
+    depth_buffer_.is_visible_batch(discs, &visible);
+    for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+      if (lane_of[slot] >= 0) batch->in_view[slot] = visible[lane_of[slot]];
+    }
   }
+  // All four in view from one creating view (primitives spawned together): their projections there, for
+  // track()'s plane map, in one batch too.
+  batch->creating_projected = false;
+  if (batch->count != kDiscBatchSize) return;
+  const std::uint32_t creating_view = pool[batch->index[0]].creating_view;
+  for (std::int32_t slot = 0; slot < kDiscBatchSize; ++slot) {
+    if (!batch->in_view[slot] || pool[batch->index[slot]].creating_view != creating_view) return;
+  }
+  Viewpoint creating;
+  if (!ok(view_pose(creating_view, &creating))) return;
+  std::array<Eigen::Vector2d, kDiscBatchSize> uv;
+  project_with_jacobian_batch(points.data(), kDiscBatchSize, creating, intrinsics_, uv.data(), batch->H_creating.data(),
+                              batch->creating_status.data());
+  batch->creating_projected = true;
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,

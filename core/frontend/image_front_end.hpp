@@ -286,6 +286,10 @@ class ImageFrontEnd final : public MeasurementSource {
     std::array<Eigen::Vector2d, kDiscBatchSize> predicted{};
     std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H{};
     std::array<bool, kDiscBatchSize> in_view{};  // predicted in the image and not occluded
+    // All four in view with one creating view: X's projection Jacobian there and its status, per slot.
+    bool creating_projected = false;
+    std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H_creating{};
+    std::array<Status, kDiscBatchSize> creating_status{};
     std::int32_t count = 0;
     std::int32_t next = 0;  // the slot track() takes next
   };
