@@ -53,15 +53,22 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
-// Solves A X = B for the columns [first, first + count) of B (the other columns of *X are left as they
-// are), A symmetric 6x6: a plain Cholesky factorization when A is positive definite (the usual case),
-// else Eigen's LDLT with its positivity check, as before (it also takes semidefinite systems, giving
-// zero for the components of zero pivots). False when neither holds.
-[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Matrix6d& B, int first, int count, Matrix6d* X) {
+// Solves A X = B for every column of B, A symmetric 6x6: a plain Cholesky factorization when A is
+// positive definite (the usual case), else Eigen's LDLT with its positivity check, as before (it also
+// takes semidefinite systems, giving zero for the components of zero pivots). False when neither holds.
+// Only the columns wanted are passed (a step: one; the tilt covariance: two of the identity), so no
+// 6x6 right-hand side is built, zeroed or copied for them.
+template <int Cols>
+[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Eigen::Matrix<double, kParams, Cols>& B,
+                                 Eigen::Matrix<double, kParams, Cols>* X) {
+  // Fully unrolled (the loops' bookkeeping was most of the 860 instructions of a one-column solve); the
+  // same operations in the same order.
   double L[kParams][kParams] = {};
   bool positive = true;
+#pragma GCC unroll 6
   for (int j = 0; j < kParams && positive; ++j) {
     double d = A(j, j);
+#pragma GCC unroll 6
     for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
     if (!(d > 0.0) || !std::isfinite(d)) {
       positive = false;
@@ -69,22 +76,28 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
     }
     L[j][j] = std::sqrt(d);
     const double inverse = 1.0 / L[j][j];
+#pragma GCC unroll 6
     for (int i = j + 1; i < kParams; ++i) {
       double v = A(i, j);
+#pragma GCC unroll 6
       for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
       L[i][j] = v * inverse;
     }
   }
   if (positive) {
-    for (int c = first; c < first + count; ++c) {
+    for (int c = 0; c < Cols; ++c) {
       double y[kParams];
+#pragma GCC unroll 6
       for (int i = 0; i < kParams; ++i) {
         double v = B(i, c);
+#pragma GCC unroll 6
         for (int k = 0; k < i; ++k) v -= L[i][k] * y[k];
         y[i] = v / L[i][i];
       }
+#pragma GCC unroll 6
       for (int i = kParams - 1; i >= 0; --i) {
         double v = y[i];
+#pragma GCC unroll 6
         for (int k = i + 1; k < kParams; ++k) v -= L[k][i] * (*X)(k, c);
         (*X)(i, c) = v / L[i][i];
       }
@@ -93,7 +106,7 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   }
   const Eigen::LDLT<Matrix6d> ldlt(A);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
-  for (int c = first; c < first + count; ++c) {
+  for (int c = 0; c < Cols; ++c) {
     const Vector6d column = B.col(c);
     X->col(c) = ldlt.solve(column);
   }
@@ -157,11 +170,9 @@ double residual_variance(const NormalEquations& eq) {
 
 // The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
 [[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
-  Matrix6d rhs = Matrix6d::Zero();
-  rhs.col(0) = gradient;
-  Matrix6d solution = Matrix6d::Zero();
-  if (!solve_spd(information, rhs, 0, 1, &solution)) return Status::kNotSpd;
-  *step = -solution.col(0);
+  Vector6d solution;
+  if (!solve_spd<1>(information, gradient, &solution)) return Status::kNotSpd;
+  *step = -solution;
   return step->allFinite() ? Status::kOk : Status::kNotSpd;
 }
 
@@ -190,16 +201,16 @@ double residual_variance(const NormalEquations& eq) {
   lag_one_correlations(rows, &rho_x, &rho_y);
   const Matrix6d meat = correlated_information_meat_dense(rows, rho_x, rho_y);  // every pixel valid
   Matrix6d meat_solved;
-  if (!solve_spd(meat, eq.JtJ, 0, kParams, &meat_solved)) return Status::kNotSpd;
+  if (!solve_spd<kParams>(meat, eq.JtJ, &meat_solved)) return Status::kNotSpd;
   Matrix6d information = eq.JtJ * meat_solved / sigma2;
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
   // Only the tilt block of the inverse: the columns of the two tilt parameters.
-  Matrix6d covariance = Matrix6d::Zero();
-  if (!solve_spd(information, Matrix6d::Identity(), 2, 2, &covariance)) return Status::kNotSpd;
-  if (!covariance.block<kParams, 2>(0, 2).allFinite()) return Status::kNotSpd;
-  *tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
+  Eigen::Matrix<double, kParams, 2> tilt_columns;
+  if (!solve_spd<2>(information, Matrix6d::Identity().middleCols<2>(2), &tilt_columns)) return Status::kNotSpd;
+  if (!tilt_columns.allFinite()) return Status::kNotSpd;
+  *tilt_covariance = 0.5 * (tilt_columns.middleRows<2>(2) + tilt_columns.middleRows<2>(2).transpose());
   return Status::kOk;
 }
 
