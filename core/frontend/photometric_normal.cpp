@@ -1,5 +1,9 @@
 #include "core/frontend/photometric_normal.hpp"
 
+// The float lanes below (Float8) are always inlined: GCC's note on passing 32-byte vectors without AVX
+// (it is reported at the end of the file, so a push/pop around them does not silence it) does not apply.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include <cmath>
 
 #include <Eigen/Cholesky>
@@ -66,7 +70,7 @@ template <int Cols>
   double L[kParams][kParams] = {};
   bool positive = true;
 #pragma GCC unroll 6
-  for (int j = 0; j < kParams && positive; ++j) {
+  for (int j = 0; j < kParams; ++j) {
     double d = A(j, j);
 #pragma GCC unroll 6
     for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
@@ -188,18 +192,7 @@ double residual_variance(const NormalEquations& eq) {
   const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
-  PatchResiduals<kParams> rows;
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
-      const auto& pixel = eq.pass.rows;
-      rows.J[index] << pixel[0][ty][tx], pixel[1][ty][tx], pixel[2][ty][tx], pixel[3][ty][tx], -static_cast<double>(patch[index]), -1.0;
-      rows.r[index] = pixel[4][ty][tx];
-      rows.valid[index] = true;
-    }
-  }
-  lag_one_correlations(rows, &rho_x, &rho_y);
-  const Matrix6d meat = correlated_information_meat_dense(rows, rho_x, rho_y);  // every pixel valid
+  const Matrix6d meat = photometric_correlated_meat(eq.pass, patch, &rho_x, &rho_y);
   Matrix6d meat_solved;
   if (!solve_spd<kParams>(meat, eq.JtJ, &meat_solved)) return Status::kNotSpd;
   Matrix6d information = eq.JtJ * meat_solved / sigma2;
@@ -215,6 +208,101 @@ double residual_variance(const NormalEquations& eq) {
 }
 
 }  // namespace
+
+namespace {
+
+// Eight float lanes: a patch row of the pass (match_kernel.hpp), the eighth lane zero in every column.
+// The compiler splits it into the ISA's vectors (two on SSE2 and NEON). The helpers are always inlined,
+// so the ABI note on passing such vectors without AVX does not apply (-Wpsabi is off for this file, top).
+using Float8 = float __attribute__((vector_size(32)));
+
+[[gnu::always_inline]] inline Float8 load8(const float* p) {
+  Float8 v;
+  __builtin_memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::always_inline]] inline Float8 splat8(float s) { return Float8{s, s, s, s, s, s, s, s}; }
+[[gnu::always_inline]] inline double sum8(Float8 v) {
+  return static_cast<double>(((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7])));
+}
+// Lane x gets the row's pixel x + 1 (right neighbour; none for the last: the spare lane's zero).
+[[gnu::always_inline]] inline Float8 right_neighbours(Float8 v) {
+  return __builtin_shufflevector(v, Float8{}, 1, 2, 3, 4, 5, 6, 7, 8);
+}
+// Lane x gets pixel x - 1 (left neighbour; zero for the first).
+[[gnu::always_inline]] inline Float8 left_neighbours(Float8 v) {
+  return __builtin_shufflevector(v, Float8{}, 8, 0, 1, 2, 3, 4, 5, 6);
+}
+
+}  // namespace
+
+Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::PhotometricPass& pass,
+                                                       const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                       double* rho_x, double* rho_y) {
+  static_assert(kPatchSize == 7, "a patch row is one group of eight lanes with one spare");
+  // J's columns per patch row: gx, gy, the two tilt columns, T and 1 (the last two without their minus
+  // signs, restored below); the spare lane is zero in each (the pass's weights, the constant's mask).
+  Float8 columns[kParams][kPatchSize];
+  const Float8 ones = Float8{1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+  Float8 squares{};
+  Float8 products_x{};
+  Float8 products_y{};
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int c = 0; c < 4; ++c) columns[c][y] = load8(pass.rows[c][y]);
+    const std::uint8_t* t = patch.data() + y * kPatchSize;
+    columns[4][y] = Float8{static_cast<float>(t[0]), static_cast<float>(t[1]), static_cast<float>(t[2]),
+                           static_cast<float>(t[3]), static_cast<float>(t[4]), static_cast<float>(t[5]),
+                           static_cast<float>(t[6]), 0.0f};
+    columns[5][y] = ones;
+    // The residual field's lag-one sums (lag_one_correlations' over 49 pixels, 42 pairs each way).
+    const Float8 r = load8(pass.rows[4][y]);
+    squares += r * r;
+    products_x += r * right_neighbours(r);
+    if (y + 1 < kPatchSize) products_y += r * load8(pass.rows[4][y + 1]);
+  }
+  const double squares_sum = sum8(squares);
+  auto clamp = [&](double products) {
+    constexpr double kPairs = kPatchSize * (kPatchSize - 1);
+    if (!(squares_sum > 0.0)) return 0.0;
+    const double rho = (products / kPairs) / (squares_sum / kPatchPixels);
+    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+  };
+  *rho_x = clamp(sum8(products_x));
+  *rho_y = clamp(sum8(products_y));
+  // Each pixel's correlation-weighted neighbours (right, lower, lower right and lower left, as
+  // for_each_correlated_neighbour), a patch row at a time.
+  const Float8 weight_x = splat8(static_cast<float>(*rho_x));
+  const Float8 weight_y = splat8(static_cast<float>(*rho_y));
+  const Float8 weight_xy = splat8(static_cast<float>(*rho_x * *rho_y));
+  Float8 neighbours[kParams][kPatchSize];
+  for (int c = 0; c < kParams; ++c) {
+    for (int y = 0; y < kPatchSize; ++y) {
+      Float8 sum = weight_x * right_neighbours(columns[c][y]);
+      if (y + 1 < kPatchSize) {
+        const Float8 below = columns[c][y + 1];
+        sum += weight_y * below + weight_xy * (right_neighbours(below) + left_neighbours(below));
+      }
+      // The spare lane's sum is not zero (the left neighbour of the eighth lane is the seventh); every
+      // column's zero there keeps it out of the products.
+      neighbours[c][y] = sum;
+    }
+  }
+  // The cross term P = sum_i J_i n_i^T; the meat is J^T J (the pass's) + P + P^T.
+  double cross[kParams][kParams];
+  for (int a = 0; a < kParams; ++a) {
+    Float8 sums[kParams] = {};
+    for (int y = 0; y < kPatchSize; ++y) {
+      for (int c = 0; c < kParams; ++c) sums[c] += columns[a][y] * neighbours[c][y];
+    }
+    for (int c = 0; c < kParams; ++c) cross[a][c] = sum8(sums[c]);
+  }
+  constexpr double kSign[kParams] = {1.0, 1.0, 1.0, 1.0, -1.0, -1.0};
+  Eigen::Matrix<double, 6, 6> meat;
+  for (int a = 0; a < kParams; ++a) {
+    for (int c = 0; c < kParams; ++c) meat(a, c) = pass.JtJ[a][c] + kSign[a] * kSign[c] * (cross[a][c] + cross[c][a]);
+  }
+  return meat;
+}
 
 Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
                                    const PhotometricNormalQuery& query, const PinholeIntrinsics& intrinsics,
