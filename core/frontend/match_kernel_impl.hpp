@@ -529,6 +529,19 @@ bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass*
       const vi y0 = iy + base_yi;
       // The corner test above holds the real positions inside; this one the rounded cells (reads below).
       const vi inside = (x0 >= min_xy) & (x0 <= max_x) & (y0 >= min_xy) & (y0 <= max_y);
+      // Each lane's 4x4 neighbourhood (rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2): one 32-bit read
+      // per row.
+      vi word[4];
+#if defined(__AVX2__)
+      // One gather per row of the neighbourhoods (the same words as the scalar reads below; the lanes'
+      // offsets fit 32 bits: the cells are inside the image).
+      if (__builtin_ia32_movmskps256(reinterpret_cast<vf>(inside)) != 0xFF) return false;
+      const vi offsets = (y0 - 1) * image.stride_bytes + (x0 - 1);
+      for (int r = 0; r < 4; ++r) {
+        const std::uint8_t* row = image.pixels + static_cast<std::ptrdiff_t>(r) * image.stride_bytes;
+        word[r] = __builtin_ia32_gathersiv8si(vi{}, reinterpret_cast<const int*>(row), offsets, vi{} - 1, 1);
+      }
+#else
       std::int32_t inside_lanes[kWidth];
       std::int32_t xs[kWidth];
       std::int32_t ys[kWidth];
@@ -538,18 +551,16 @@ bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass*
       bool all_inside = true;
       for (int k = 0; k < kWidth; ++k) all_inside = all_inside && inside_lanes[k] != 0;
       if (!all_inside) return false;
-      // Each lane's 4x4 neighbourhood (rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2): one 32-bit read
-      // per row.
       std::uint32_t words[4][kWidth];
       for (int k = 0; k < kWidth; ++k) {
         const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(ys[k] - 1) * image.stride_bytes + (xs[k] - 1);
         for (int r = 0; r < 4; ++r) __builtin_memcpy(&words[r][k], src + static_cast<std::ptrdiff_t>(r) * image.stride_bytes, 4);
       }
+      for (int r = 0; r < 4; ++r) __builtin_memcpy(&word[r], words[r], sizeof word[r]);
+#endif
       vf pix[4][4];
       for (int r = 0; r < 4; ++r) {
-        vi word;
-        __builtin_memcpy(&word, words[r], sizeof word);
-        for (int c = 0; c < 4; ++c) pix[r][c] = __builtin_convertvector((word >> (8 * c)) & 255, vf);
+        for (int c = 0; c < 4; ++c) pix[r][c] = __builtin_convertvector((word[r] >> (8 * c)) & 255, vf);
       }
       // The bilinear blends: the value and the four samples one pixel away share fx and fy.
       const vf gx0 = one - fx;
