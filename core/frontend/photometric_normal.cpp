@@ -195,12 +195,12 @@ double residual_variance(const NormalEquations& eq) {
 // White residuals give M = H. Its own function (not inlined): the 6x6 factorizations would otherwise
 // share one stack frame with the iteration's, beyond the core's frame limit under ASan.
 [[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, const std::array<std::uint8_t, kPatchPixels>& patch,
-                                            double prior_information,
+                                            double prior_information, MatchKernel kernel,
                                             Eigen::Matrix2d* tilt_covariance) {
   const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
-  const Matrix6d meat = photometric_correlated_meat(eq.pass, patch, &rho_x, &rho_y);
+  const Matrix6d meat = photometric_correlated_meat(eq.pass, patch, &rho_x, &rho_y, kernel);
   Matrix6d meat_solved;
   if (!solve_spd<kParams>(meat, eq.JtJ, &meat_solved)) return Status::kNotSpd;
   Matrix6d information = eq.JtJ * meat_solved / sigma2;
@@ -242,11 +242,11 @@ using Float8 = float __attribute__((vector_size(32)));
   return __builtin_shufflevector(v, Float8{}, 8, 0, 1, 2, 3, 4, 5, 6);
 }
 
-}  // namespace
-
-Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::PhotometricPass& pass,
-                                                       const std::array<std::uint8_t, kPatchPixels>& patch,
-                                                       double* rho_x, double* rho_y) {
+// photometric_correlated_meat's lanes (built twice below: the baseline and AVX2 without FMA, so the
+// same operations per lane and the same bits).
+[[gnu::always_inline]] inline void correlated_meat_lanes(const match_kernel::PhotometricPass& pass,
+                                                         const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                         double* rho_x, double* rho_y, double (*meat)[kParams]) {
   static_assert(kPatchSize == 7, "a patch row is one group of eight lanes with one spare");
   // J's columns per patch row: gx, gy, the two tilt columns, T and 1 (the last two without their minus
   // signs, restored below); the spare lane is zero in each (the pass's weights, the constant's mask).
@@ -305,11 +305,49 @@ Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::Phot
     for (int c = 0; c < kParams; ++c) cross[a][c] = sum8(sums[c]);
   }
   constexpr double kSign[kParams] = {1.0, 1.0, 1.0, 1.0, -1.0, -1.0};
-  Eigen::Matrix<double, 6, 6> meat;
   for (int a = 0; a < kParams; ++a) {
-    for (int c = 0; c < kParams; ++c) meat(a, c) = pass.JtJ[a][c] + kSign[a] * kSign[c] * (cross[a][c] + cross[c][a]);
+    for (int c = 0; c < kParams; ++c) meat[a][c] = pass.JtJ[a][c] + kSign[a] * kSign[c] * (cross[a][c] + cross[c][a]);
   }
-  return meat;
+}
+
+[[gnu::noinline]] void correlated_meat_baseline(const match_kernel::PhotometricPass& pass,
+                                                const std::array<std::uint8_t, kPatchPixels>& patch, double* rho_x,
+                                                double* rho_y, double (*meat)[kParams]) {
+  correlated_meat_lanes(pass, patch, rho_x, rho_y, meat);
+}
+
+#if defined(__x86_64__)
+// Eight-lane vectors are one AVX register each (SSE2 takes two instructions per operation); no FMA, so
+// nothing is contracted.
+[[gnu::noinline, gnu::target("avx2")]] void correlated_meat_avx2(const match_kernel::PhotometricPass& pass,
+                                                                 const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                                 double* rho_x, double* rho_y, double (*meat)[kParams]) {
+  correlated_meat_lanes(pass, patch, rho_x, rho_y, meat);
+}
+#endif
+
+}  // namespace
+
+Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::PhotometricPass& pass,
+                                                       const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                       double* rho_x, double* rho_y, MatchKernel kernel) {
+  double meat[kParams][kParams];
+#if defined(__x86_64__)
+  // The CPU's flag read directly (libgcc sets it up before main), as template_gradient_moments does.
+  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
+    correlated_meat_avx2(pass, patch, rho_x, rho_y, meat);
+  } else {
+    correlated_meat_baseline(pass, patch, rho_x, rho_y, meat);
+  }
+#else
+  (void)kernel;
+  correlated_meat_baseline(pass, patch, rho_x, rho_y, meat);
+#endif
+  Eigen::Matrix<double, 6, 6> out;
+  for (int a = 0; a < kParams; ++a) {
+    for (int c = 0; c < kParams; ++c) out(a, c) = meat[a][c];
+  }
+  return out;
 }
 
 Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
@@ -359,7 +397,7 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   Eigen::Matrix2d tilt_covariance;
-  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, &tilt_covariance);
+  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, query.kernel, &tilt_covariance);
   if (!ok(covariance_status)) return covariance_status;
   // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
   const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));

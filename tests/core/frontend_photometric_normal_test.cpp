@@ -465,6 +465,14 @@ TEST_CASE("the photometric pass's float meat equals the double one of the correl
       Eigen::Matrix<double, 6, 6> got;
       REQUIRE_NO_ALLOCATION(got = photometric_correlated_meat(pass, patch, &got_rho_x, &got_rho_y));
       INFO("patch " << sx << ", " << sy << "\ngeneral\n" << general << "\nfloat\n" << got);
+      // Both builds: the same operations per lane, the same bits.
+      double baseline_rho_x = -1.0;
+      double baseline_rho_y = -1.0;
+      const Eigen::Matrix<double, 6, 6> baseline =
+          photometric_correlated_meat(pass, patch, &baseline_rho_x, &baseline_rho_y, MatchKernel::kBaseline);
+      CHECK((baseline.array() == got.array()).all());
+      CHECK(baseline_rho_x == got_rho_x);
+      CHECK(baseline_rho_y == got_rho_y);
       CHECK(std::abs(got_rho_x - rho_x) < 1e-5);
       CHECK(std::abs(got_rho_y - rho_y) < 1e-5);
       CHECK((got - got.transpose()).norm() == 0.0);
