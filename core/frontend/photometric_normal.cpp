@@ -2,7 +2,9 @@
 
 // The float lanes below (Float8) are always inlined: GCC's note on passing 32-byte vectors without AVX
 // (it is reported at the end of the file, so a push/pop around them does not silence it) does not apply.
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 
 #include <cmath>
 
