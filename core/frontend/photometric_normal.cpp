@@ -42,12 +42,9 @@ bool plane_views(const PhotometricNormalQuery& q, const PinholeIntrinsics& k, Pl
          ok(project_with_jacobian(q.X_world, q.target, k, &unused, &out->H_target));
 }
 
-// The target-per-reference map M of the plane with unit normal n at X (inverse of plane_affine's) and
-// its derivatives dM[j] along the normal's changes dn[j] (tangent to n): plane_affine_from_jacobians'
-// closed-form dA_k for tilts toward its basis b_k, so dA along dn is sum_k (b_k . dn) dA_k, and
-// dM = -M dA M. (Before: forward differences of two more maps at tilts of 1e-3 rad.)
+// The target-per-reference map of the plane with normal n at X (inverse of plane_affine's).
 Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, const Eigen::Vector3d& n,
-                  const Eigen::Vector3d (&dn)[2], Eigen::Matrix2d* M, Eigen::Matrix2d (&dM)[2]) {
+                  Eigen::Matrix2d* M) {
   if (!(n.dot(views.to_reference) > q.min_facing_cos) || !(n.dot(views.to_target) > q.min_facing_cos)) {
     return Status::kBehindCamera;
   }
@@ -55,20 +52,11 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   // normal's length (a non-finite component makes it non-finite).
   const Eigen::Vector3f n_float = n.cast<float>();
   Eigen::Matrix2d A;
-  std::array<Eigen::Matrix2d, 2> dA;
-  if (!ok(plane_affine_from_jacobians(views.H_reference, views.H_target, n_float, &A, &dA))) {
+  if (!ok(plane_affine_from_jacobians(views.H_reference, views.H_target, n_float, &A, nullptr))) {
     return Status::kBehindCamera;
   }
   *M = A.inverse();
-  if (!M->allFinite()) return Status::kBehindCamera;
-  // plane_affine_from_jacobians' basis (of the float normal it normalizes).
-  const Eigen::Vector3d n_used = n_float.cast<double>();
-  const Eigen::Matrix<double, 3, 2> basis = plane_basis(n_used / n_used.norm());
-  for (int j = 0; j < 2; ++j) {
-    const Eigen::Vector2d along = basis.transpose() * dn[j];
-    dM[j] = -*M * (along(0) * dA[0] + along(1) * dA[1]) * *M;
-  }
-  return Status::kOk;
+  return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
 // Solves A X = B for every column of B, A symmetric 6x6: a plain Cholesky factorization when A is
@@ -144,15 +132,19 @@ struct NormalEquations {
 [[gnu::noinline]] Status accumulate(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
                   const PhotometricNormalQuery& q, const PlaneViews& views, const Eigen::Vector3d& e1,
                   const Eigen::Vector3d& e2, const Vector6d& theta, NormalEquations* out) {
-  // n(t) = m / |m|, m = n0 + t1 e1 + t2 e2: dn/dt_j = (e_j - n (n . e_j)) / |m|.
-  const Eigen::Vector3d m = q.normal_world.cast<double>() + theta(2) * e1 + theta(3) * e2;
-  const double length = m.norm();
-  const Eigen::Vector3d n = m / length;
-  const Eigen::Vector3d dn[2] = {(e1 - n * n.dot(e1)) / length, (e2 - n * n.dot(e2)) / length};
+  const Eigen::Vector3d n0 = q.normal_world.cast<double>();
+  auto normal_at = [&](double t1, double t2) { return (n0 + t1 * e1 + t2 * e2).normalized(); };
   Eigen::Matrix2d M;
-  Eigen::Matrix2d dM[2];
-  const Status status = target_map(q, views, n, dn, &M, dM);
+  Status status = target_map(q, views, normal_at(theta(2), theta(3)), &M);
   if (!ok(status)) return status;
+  constexpr double kStep = 1e-3;  // rad; float normals in plane_affine resolve ~1e-7
+  Eigen::Matrix2d dM[2];
+  for (int j = 0; j < 2; ++j) {
+    Eigen::Matrix2d M_step;
+    status = target_map(q, views, normal_at(theta(2) + (j == 0 ? kStep : 0.0), theta(3) + (j == 1 ? kStep : 0.0)), &M_step);
+    if (!ok(status)) return status;
+    dM[j] = (M_step - M) / kStep;
+  }
   // The pixel loop (match_kernel.hpp: float lanes, one 32-bit read per row of each pixel's 4x4
   // neighbourhood, the value and both central differences from one set of bilinear weights).
   match_kernel::PhotometricPass& pass = out->pass;
