@@ -112,6 +112,15 @@ VANTAGE_MATCH_INLINE void sum_lanes12(const vf* v, float* sums) {
   for (int i = 0; i < 12; i += 4) store(sums + i, sum_quads(sum_pairs(v[i], v[i + 1]), sum_pairs(v[i + 2], v[i + 3])));
 #endif
 }
+// sums[i] = the sum of the lanes of v[i], i < 8.
+VANTAGE_MATCH_INLINE void sum_lanes8(const vf* v, float* sums) {
+#if defined(__AVX__)
+  store(sums, sum_octs(sum_quads(sum_pairs(v[0], v[1]), sum_pairs(v[2], v[3])),
+                       sum_quads(sum_pairs(v[4], v[5]), sum_pairs(v[6], v[7]))));
+#else
+  for (int i = 0; i < 8; i += 4) store(sums + i, sum_quads(sum_pairs(v[i], v[i + 1]), sum_pairs(v[i + 2], v[i + 3])));
+#endif
+}
 VANTAGE_MATCH_INLINE vf max_zero(vf v) { return v > vf{} ? v : vf{}; }
 VANTAGE_MATCH_INLINE vf sqrt_lanes(vf v) {
   vf r;
@@ -263,11 +272,14 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   constexpr int kBlockRead = (kMargin + kResampledStride + 7) / 8 * 8;
   static_assert(kMargin - 1 + kResampledStride + 1 <= kBlockRead && kBlockRead <= kBlockStride,
                 "block rows too short for the resampling");
+  // Rows 0 and kBlock - 1 are never read (a shift within a pixel reaches one row of margin less on each
+  // side than the block holds), so they are not converted.
   float block[kBlock][kBlockStride];
   const std::int32_t block_x = x - kSize / 2 - kMargin;
-  const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(y - kSize / 2 - kMargin) * image.stride_bytes + block_x;
+  const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(y - kSize / 2 - kMargin + 1) * image.stride_bytes + block_x;
   const std::int32_t readable = image.width_px - block_x;
-  for (int j = 0; j < kBlock; ++j, src += image.stride_bytes) {
+#pragma GCC unroll 16
+  for (int j = 1; j + 1 < kBlock; ++j, src += image.stride_bytes) {
     if (readable >= kBlockRead) {
       int i = 0;
       for (; i + 16 <= kBlockRead; i += 16) bytes16_to_floats(src + i, block[j] + i);
@@ -309,10 +321,14 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
       sum_image += load(&m8[ty][lane]) * load(&block[ty + kMargin][kMargin + lane]);
     }
   }
-  const double s_tt = sum_lanes(sum_tt);
-  const double s_t = sum_lanes(sum_t);
+  // The three lane sums by one shuffle-and-add tree (each lane sum in sum_lanes' order: the same values).
+  const vf setup_acc[8] = {sum_tt, sum_t, sum_image, vf{}, vf{}, vf{}, vf{}, vf{}};
+  float setup_sums[8];
+  sum_lanes8(setup_acc, setup_sums);
+  const double s_tt = setup_sums[0];
+  const double s_t = setup_sums[1];
   const double s_1 = tmpl.valid_count;
-  double beta = static_cast<double>(sum_lanes(sum_image)) / s_1;
+  double beta = static_cast<double>(setup_sums[2]) / s_1;
   double alpha = 1.0;
   // The photometric block C = [[s_tt, s_t], [s_t, s_1]] of J^T J and its inverse (the 4x4 normal
   // equations are solved by the Schur complement on the shift: same solution, 2x2 inverses only).
@@ -529,6 +545,19 @@ bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass*
       const vi y0 = iy + base_yi;
       // The corner test above holds the real positions inside; this one the rounded cells (reads below).
       const vi inside = (x0 >= min_xy) & (x0 <= max_x) & (y0 >= min_xy) & (y0 <= max_y);
+      // Each lane's 4x4 neighbourhood (rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2): one 32-bit read
+      // per row.
+      vi word[4];
+#if defined(__AVX2__)
+      // One gather per row of the neighbourhoods (the same words as the scalar reads below; the lanes'
+      // offsets fit 32 bits: the cells are inside the image).
+      if (__builtin_ia32_movmskps256(reinterpret_cast<vf>(inside)) != 0xFF) return false;
+      const vi offsets = (y0 - 1) * image.stride_bytes + (x0 - 1);
+      for (int r = 0; r < 4; ++r) {
+        const std::uint8_t* row = image.pixels + static_cast<std::ptrdiff_t>(r) * image.stride_bytes;
+        word[r] = __builtin_ia32_gathersiv8si(vi{}, reinterpret_cast<const int*>(row), offsets, vi{} - 1, 1);
+      }
+#else
       std::int32_t inside_lanes[kWidth];
       std::int32_t xs[kWidth];
       std::int32_t ys[kWidth];
@@ -538,18 +567,16 @@ bool photometric(const Image& image, const std::uint8_t* patch, PhotometricPass*
       bool all_inside = true;
       for (int k = 0; k < kWidth; ++k) all_inside = all_inside && inside_lanes[k] != 0;
       if (!all_inside) return false;
-      // Each lane's 4x4 neighbourhood (rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2): one 32-bit read
-      // per row.
       std::uint32_t words[4][kWidth];
       for (int k = 0; k < kWidth; ++k) {
         const std::uint8_t* src = image.pixels + static_cast<std::ptrdiff_t>(ys[k] - 1) * image.stride_bytes + (xs[k] - 1);
         for (int r = 0; r < 4; ++r) __builtin_memcpy(&words[r][k], src + static_cast<std::ptrdiff_t>(r) * image.stride_bytes, 4);
       }
+      for (int r = 0; r < 4; ++r) __builtin_memcpy(&word[r], words[r], sizeof word[r]);
+#endif
       vf pix[4][4];
       for (int r = 0; r < 4; ++r) {
-        vi word;
-        __builtin_memcpy(&word, words[r], sizeof word);
-        for (int c = 0; c < 4; ++c) pix[r][c] = __builtin_convertvector((word >> (8 * c)) & 255, vf);
+        for (int c = 0; c < 4; ++c) pix[r][c] = __builtin_convertvector((word[r] >> (8 * c)) & 255, vf);
       }
       // The bilinear blends: the value and the four samples one pixel away share fx and fy.
       const vf gx0 = one - fx;

@@ -1,5 +1,11 @@
 #include "core/frontend/photometric_normal.hpp"
 
+// The float lanes below (Float8) are always inlined: GCC's note on passing 32-byte vectors without AVX
+// (it is reported at the end of the file, so a push/pop around them does not silence it) does not apply.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
 #include <cmath>
 
 #include <Eigen/Cholesky>
@@ -53,15 +59,22 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   return M->allFinite() ? Status::kOk : Status::kBehindCamera;
 }
 
-// Solves A X = B for the columns [first, first + count) of B (the other columns of *X are left as they
-// are), A symmetric 6x6: a plain Cholesky factorization when A is positive definite (the usual case),
-// else Eigen's LDLT with its positivity check, as before (it also takes semidefinite systems, giving
-// zero for the components of zero pivots). False when neither holds.
-[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Matrix6d& B, int first, int count, Matrix6d* X) {
+// Solves A X = B for every column of B, A symmetric 6x6: a plain Cholesky factorization when A is
+// positive definite (the usual case), else Eigen's LDLT with its positivity check, as before (it also
+// takes semidefinite systems, giving zero for the components of zero pivots). False when neither holds.
+// Only the columns wanted are passed (a step: one; the tilt covariance: two of the identity), so no
+// 6x6 right-hand side is built, zeroed or copied for them.
+template <int Cols>
+[[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Eigen::Matrix<double, kParams, Cols>& B,
+                                 Eigen::Matrix<double, kParams, Cols>* X) {
+  // Fully unrolled (the loops' bookkeeping was most of the 860 instructions of a one-column solve); the
+  // same operations in the same order.
   double L[kParams][kParams] = {};
   bool positive = true;
-  for (int j = 0; j < kParams && positive; ++j) {
+#pragma GCC unroll 6
+  for (int j = 0; j < kParams; ++j) {
     double d = A(j, j);
+#pragma GCC unroll 6
     for (int k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
     if (!(d > 0.0) || !std::isfinite(d)) {
       positive = false;
@@ -69,22 +82,28 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
     }
     L[j][j] = std::sqrt(d);
     const double inverse = 1.0 / L[j][j];
+#pragma GCC unroll 6
     for (int i = j + 1; i < kParams; ++i) {
       double v = A(i, j);
+#pragma GCC unroll 6
       for (int k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
       L[i][j] = v * inverse;
     }
   }
   if (positive) {
-    for (int c = first; c < first + count; ++c) {
+    for (int c = 0; c < Cols; ++c) {
       double y[kParams];
+#pragma GCC unroll 6
       for (int i = 0; i < kParams; ++i) {
         double v = B(i, c);
+#pragma GCC unroll 6
         for (int k = 0; k < i; ++k) v -= L[i][k] * y[k];
         y[i] = v / L[i][i];
       }
+#pragma GCC unroll 6
       for (int i = kParams - 1; i >= 0; --i) {
         double v = y[i];
+#pragma GCC unroll 6
         for (int k = i + 1; k < kParams; ++k) v -= L[k][i] * (*X)(k, c);
         (*X)(i, c) = v / L[i][i];
       }
@@ -93,7 +112,7 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
   }
   const Eigen::LDLT<Matrix6d> ldlt(A);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
-  for (int c = first; c < first + count; ++c) {
+  for (int c = 0; c < Cols; ++c) {
     const Vector6d column = B.col(c);
     X->col(c) = ldlt.solve(column);
   }
@@ -157,11 +176,9 @@ double residual_variance(const NormalEquations& eq) {
 
 // The Gauss-Newton step -information^-1 gradient. Not inlined, for the caller's stack frame (ASan).
 [[gnu::noinline]] Status gauss_newton_step(const Matrix6d& information, const Vector6d& gradient, Vector6d* step) {
-  Matrix6d rhs = Matrix6d::Zero();
-  rhs.col(0) = gradient;
-  Matrix6d solution = Matrix6d::Zero();
-  if (!solve_spd(information, rhs, 0, 1, &solution)) return Status::kNotSpd;
-  *step = -solution.col(0);
+  Vector6d solution;
+  if (!solve_spd<1>(information, gradient, &solution)) return Status::kNotSpd;
+  *step = -solution;
   return step->allFinite() ? Status::kOk : Status::kNotSpd;
 }
 
@@ -172,38 +189,160 @@ double residual_variance(const NormalEquations& eq) {
 // White residuals give M = H. Its own function (not inlined): the 6x6 factorizations would otherwise
 // share one stack frame with the iteration's, beyond the core's frame limit under ASan.
 [[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, const std::array<std::uint8_t, kPatchPixels>& patch,
-                                            double prior_information,
+                                            double prior_information, MatchKernel kernel,
                                             Eigen::Matrix2d* tilt_covariance) {
   const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
-  PatchResiduals<kParams> rows;
-  for (int ty = 0; ty < kPatchSize; ++ty) {
-    for (int tx = 0; tx < kPatchSize; ++tx) {
-      const std::size_t index = static_cast<std::size_t>(ty * kPatchSize + tx);
-      const auto& pixel = eq.pass.rows;
-      rows.J[index] << pixel[0][ty][tx], pixel[1][ty][tx], pixel[2][ty][tx], pixel[3][ty][tx], -static_cast<double>(patch[index]), -1.0;
-      rows.r[index] = pixel[4][ty][tx];
-      rows.valid[index] = true;
-    }
-  }
-  lag_one_correlations(rows, &rho_x, &rho_y);
-  const Matrix6d meat = correlated_information_meat_dense(rows, rho_x, rho_y);  // every pixel valid
+  const Matrix6d meat = photometric_correlated_meat(eq.pass, patch, &rho_x, &rho_y, kernel);
   Matrix6d meat_solved;
-  if (!solve_spd(meat, eq.JtJ, 0, kParams, &meat_solved)) return Status::kNotSpd;
+  if (!solve_spd<kParams>(meat, eq.JtJ, &meat_solved)) return Status::kNotSpd;
   Matrix6d information = eq.JtJ * meat_solved / sigma2;
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
   // Only the tilt block of the inverse: the columns of the two tilt parameters.
-  Matrix6d covariance = Matrix6d::Zero();
-  if (!solve_spd(information, Matrix6d::Identity(), 2, 2, &covariance)) return Status::kNotSpd;
-  if (!covariance.block<kParams, 2>(0, 2).allFinite()) return Status::kNotSpd;
-  *tilt_covariance = 0.5 * (covariance.block<2, 2>(2, 2) + covariance.block<2, 2>(2, 2).transpose());
+  Eigen::Matrix<double, kParams, 2> tilt_columns;
+  if (!solve_spd<2>(information, Matrix6d::Identity().middleCols<2>(2), &tilt_columns)) return Status::kNotSpd;
+  if (!tilt_columns.allFinite()) return Status::kNotSpd;
+  *tilt_covariance = 0.5 * (tilt_columns.middleRows<2>(2) + tilt_columns.middleRows<2>(2).transpose());
   return Status::kOk;
 }
 
 }  // namespace
+
+namespace {
+
+// Eight float lanes: a patch row of the pass (match_kernel.hpp), the eighth lane zero in every column.
+// The compiler splits it into the ISA's vectors (two on SSE2 and NEON). The helpers are always inlined,
+// so the ABI note on passing such vectors without AVX does not apply (-Wpsabi is off for this file, top).
+using Float8 = float __attribute__((vector_size(32)));
+
+[[gnu::always_inline]] inline Float8 load8(const float* p) {
+  Float8 v;
+  __builtin_memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::always_inline]] inline Float8 splat8(float s) { return Float8{s, s, s, s, s, s, s, s}; }
+[[gnu::always_inline]] inline double sum8(Float8 v) {
+  return static_cast<double>(((v[0] + v[1]) + (v[2] + v[3])) + ((v[4] + v[5]) + (v[6] + v[7])));
+}
+// Lane x gets the row's pixel x + 1 (right neighbour; none for the last: the spare lane's zero).
+[[gnu::always_inline]] inline Float8 right_neighbours(Float8 v) {
+  return __builtin_shufflevector(v, Float8{}, 1, 2, 3, 4, 5, 6, 7, 8);
+}
+// Lane x gets pixel x - 1 (left neighbour; zero for the first).
+[[gnu::always_inline]] inline Float8 left_neighbours(Float8 v) {
+  return __builtin_shufflevector(v, Float8{}, 8, 0, 1, 2, 3, 4, 5, 6);
+}
+
+// photometric_correlated_meat's lanes (built twice below: the baseline and AVX2 without FMA, so the
+// same operations per lane and the same bits).
+[[gnu::always_inline]] inline void correlated_meat_lanes(const match_kernel::PhotometricPass& pass,
+                                                         const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                         double* rho_x, double* rho_y, double (*meat)[kParams]) {
+  static_assert(kPatchSize == 7, "a patch row is one group of eight lanes with one spare");
+  // J's columns per patch row: gx, gy, the two tilt columns, T and 1 (the last two without their minus
+  // signs, restored below); the spare lane is zero in each (the pass's weights, the constant's mask).
+  Float8 columns[kParams][kPatchSize];
+  const Float8 ones = Float8{1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+  Float8 squares{};
+  Float8 products_x{};
+  Float8 products_y{};
+  for (int y = 0; y < kPatchSize; ++y) {
+    for (int c = 0; c < 4; ++c) columns[c][y] = load8(pass.rows[c][y]);
+    const std::uint8_t* t = patch.data() + y * kPatchSize;
+    columns[4][y] = Float8{static_cast<float>(t[0]), static_cast<float>(t[1]), static_cast<float>(t[2]),
+                           static_cast<float>(t[3]), static_cast<float>(t[4]), static_cast<float>(t[5]),
+                           static_cast<float>(t[6]), 0.0f};
+    columns[5][y] = ones;
+    // The residual field's lag-one sums (lag_one_correlations' over 49 pixels, 42 pairs each way).
+    const Float8 r = load8(pass.rows[4][y]);
+    squares += r * r;
+    products_x += r * right_neighbours(r);
+    if (y + 1 < kPatchSize) products_y += r * load8(pass.rows[4][y + 1]);
+  }
+  const double squares_sum = sum8(squares);
+  auto clamp = [&](double products) {
+    constexpr double kPairs = kPatchSize * (kPatchSize - 1);
+    if (!(squares_sum > 0.0)) return 0.0;
+    const double rho = (products / kPairs) / (squares_sum / kPatchPixels);
+    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+  };
+  *rho_x = clamp(sum8(products_x));
+  *rho_y = clamp(sum8(products_y));
+  // Each pixel's correlation-weighted neighbours (right, lower, lower right and lower left, as
+  // for_each_correlated_neighbour), a patch row at a time.
+  const Float8 weight_x = splat8(static_cast<float>(*rho_x));
+  const Float8 weight_y = splat8(static_cast<float>(*rho_y));
+  const Float8 weight_xy = splat8(static_cast<float>(*rho_x * *rho_y));
+  Float8 neighbours[kParams][kPatchSize];
+  for (int c = 0; c < kParams; ++c) {
+    for (int y = 0; y < kPatchSize; ++y) {
+      Float8 sum = weight_x * right_neighbours(columns[c][y]);
+      if (y + 1 < kPatchSize) {
+        const Float8 below = columns[c][y + 1];
+        sum += weight_y * below + weight_xy * (right_neighbours(below) + left_neighbours(below));
+      }
+      // The spare lane's sum is not zero (the left neighbour of the eighth lane is the seventh); every
+      // column's zero there keeps it out of the products.
+      neighbours[c][y] = sum;
+    }
+  }
+  // The cross term P = sum_i J_i n_i^T; the meat is J^T J (the pass's) + P + P^T.
+  double cross[kParams][kParams];
+  for (int a = 0; a < kParams; ++a) {
+    Float8 sums[kParams] = {};
+    for (int y = 0; y < kPatchSize; ++y) {
+      for (int c = 0; c < kParams; ++c) sums[c] += columns[a][y] * neighbours[c][y];
+    }
+    for (int c = 0; c < kParams; ++c) cross[a][c] = sum8(sums[c]);
+  }
+  constexpr double kSign[kParams] = {1.0, 1.0, 1.0, 1.0, -1.0, -1.0};
+  for (int a = 0; a < kParams; ++a) {
+    for (int c = 0; c < kParams; ++c) meat[a][c] = pass.JtJ[a][c] + kSign[a] * kSign[c] * (cross[a][c] + cross[c][a]);
+  }
+}
+
+[[gnu::noinline]] void correlated_meat_baseline(const match_kernel::PhotometricPass& pass,
+                                                const std::array<std::uint8_t, kPatchPixels>& patch, double* rho_x,
+                                                double* rho_y, double (*meat)[kParams]) {
+  correlated_meat_lanes(pass, patch, rho_x, rho_y, meat);
+}
+
+#if defined(__x86_64__)
+// Eight-lane vectors are one AVX register each (SSE2 takes two instructions per operation); no FMA, so
+// nothing is contracted.
+[[gnu::noinline, gnu::target("avx2")]] void correlated_meat_avx2(const match_kernel::PhotometricPass& pass,
+                                                                 const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                                 double* rho_x, double* rho_y, double (*meat)[kParams]) {
+  correlated_meat_lanes(pass, patch, rho_x, rho_y, meat);
+}
+#endif
+
+}  // namespace
+
+Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::PhotometricPass& pass,
+                                                       const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                       double* rho_x, double* rho_y, MatchKernel kernel) {
+  double meat[kParams][kParams];
+#if defined(__x86_64__)
+  // The CPU's flag read directly (libgcc sets it up before main), as template_gradient_moments does.
+  if (kernel != MatchKernel::kBaseline && __builtin_cpu_supports("avx2")) {
+    correlated_meat_avx2(pass, patch, rho_x, rho_y, meat);
+  } else {
+    correlated_meat_baseline(pass, patch, rho_x, rho_y, meat);
+  }
+#else
+  (void)kernel;
+  correlated_meat_baseline(pass, patch, rho_x, rho_y, meat);
+#endif
+  Eigen::Matrix<double, 6, 6> out;
+  for (int a = 0; a < kParams; ++a) {
+    for (int c = 0; c < kParams; ++c) out(a, c) = meat[a][c];
+  }
+  return out;
+}
 
 Status estimate_photometric_normal(const GrayImageView& image, const std::array<std::uint8_t, kPatchPixels>& patch,
                                    const PhotometricNormalQuery& query, const PinholeIntrinsics& intrinsics,
@@ -252,7 +391,7 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   Eigen::Matrix2d tilt_covariance;
-  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, &tilt_covariance);
+  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, query.kernel, &tilt_covariance);
   if (!ok(covariance_status)) return covariance_status;
   // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
   const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));

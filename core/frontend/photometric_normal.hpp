@@ -59,4 +59,15 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
                                    const PhotometricNormalQuery& query, const PinholeIntrinsics& intrinsics,
                                    PhotometricNormalEstimate* estimate);
 
+// The sandwich's meat J^T C J of one pass of the fit (match_kernel::PhotometricPass, its outputs and
+// per-pixel rows; J = [g, two tilt columns, -T, -1]): C the residual field's lag-one correlations
+// (correlated_residuals.hpp's model, clamped the same way), *rho_x and *rho_y, and J^T J the pass's own.
+// The cross terms are summed in float lanes from the rows (the pass's precision). The estimate's tilt
+// covariance uses it at the last pass. kernel: kBaseline forces the baseline build; otherwise AVX2 where
+// the CPU has it (the same bits: no FMA).
+Eigen::Matrix<double, 6, 6> photometric_correlated_meat(const match_kernel::PhotometricPass& pass,
+                                                       const std::array<std::uint8_t, kPatchPixels>& patch,
+                                                       double* rho_x, double* rho_y,
+                                                       MatchKernel kernel = MatchKernel::kAuto);
+
 }  // namespace vantage
