@@ -85,8 +85,21 @@ Eigen::Matrix2d spawn_warp_covariance(const NccTemplate& tmpl, const Eigen::Vect
   return covariance.allFinite() ? covariance : Eigen::Matrix2d::Zero();
 }
 
+// A prediction's facing cosine (the normal against the direction to the camera) and the point its
+// occlusion test takes: the centre pulled toward the camera by occlusion_sigmas of its own uncertainty
+// along the ray, so an uncertain primitive is not hidden by the surface it may lie on.
+void facing_and_pulled(const Primitive& p, const Eigen::Vector3d& camera, double occlusion_sigmas, double* facing,
+                       Eigen::Vector3f* pulled_world) {
+  const Eigen::Vector3d to_camera = camera - p.X_world;
+  const double distance = to_camera.norm();
+  *facing = p.normal_world.cast<double>().dot(to_camera) / distance;
+  const Eigen::Vector3d ray = -to_camera / distance;
+  const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
+  *pulled_world = (p.X_world - occlusion_sigmas * sigma_ray * ray).cast<float>();
+}
+
 #if defined(__x86_64__)
-// predicted_geometry's facing cosine and pulled-forward point for four primitives in AVX lanes (no FMA),
+// facing_and_pulled for four primitives in AVX lanes (no FMA),
 // each lane the scalar code's operations in the order Eigen evaluates them there (measured on random
 // inputs: |to_camera|^2 as (t0^2 + t1^2) + t2^2, the facing dot as n0 t0 + (n1 t1 + n2 t2), Sigma ray's
 // first two rows as (a0 b0 + a1 b1) + a2 b2 and its third as a0 b0 + (a1 b1 + a2 b2), ray . (Sigma ray) as
@@ -553,21 +566,6 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
   return seen.outcome;
 }
 
-bool ImageFrontEnd::predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion,
-                                       const Eigen::Vector2d& predicted, Eigen::Vector3f* pulled_world) const {
-  if (!in_image(predicted, intrinsics_, kPatchRadius + 1.0)) return false;
-  const Eigen::Vector3d to_camera = view.position_world - p.X_world;
-  const double distance = to_camera.norm();
-  const double facing = p.normal_world.cast<double>().dot(to_camera) / distance;
-  if (!(facing > config_.min_facing_cos)) return false;
-  if (!occlusion) return true;
-  // Pulled forward by its own uncertainty, it must not be behind the buffer.
-  const Eigen::Vector3d ray = -to_camera / distance;
-  const double sigma_ray = std::sqrt(ray.dot(p.Sigma_world * ray));
-  *pulled_world = (p.X_world - config_.occlusion_sigmas * sigma_ray * ray).cast<float>();
-  return true;
-}
-
 void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, bool occlusion,
                                   const PrimitivePoolView& pool, PredictionBatch* batch) const {
   batch->count = 0;
@@ -583,36 +581,31 @@ void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, b
   std::array<Status, kDiscBatchSize> projected{};
   project_with_jacobian_batch(points.data(), batch->count, view, intrinsics_, batch->predicted.data(), batch->H.data(),
                               projected.data());
-  DiscBatch discs;
-  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
+  // In view: projected inside the image and facing the camera; the occlusion test follows.
+  std::array<const Primitive*, kDiscBatchSize> primitives{};
+  for (std::int32_t slot = 0; slot < batch->count; ++slot) primitives[slot] = &pool[batch->index[slot]];
+  std::array<double, kDiscBatchSize> facing{};
+  std::array<Eigen::Vector3f, kDiscBatchSize> pulled;
 #if defined(__x86_64__)
   if (__builtin_cpu_supports("avx2") && batch->count > 1) {
-    // predicted_geometry for the batch in lanes (the same bits).
-    std::array<const Primitive*, kDiscBatchSize> primitives{};
-    for (std::int32_t slot = 0; slot < batch->count; ++slot) primitives[slot] = &pool[batch->index[slot]];
-    std::array<double, kDiscBatchSize> facing{};
-    std::array<Eigen::Vector3f, kDiscBatchSize> pulled;
     facing_and_pulled_lanes4(primitives.data(), batch->count, view.position_world, config_.occlusion_sigmas,
                              facing.data(), pulled.data());
-    for (std::int32_t slot = 0; slot < batch->count; ++slot) {
-      batch->in_view[slot] = ok(projected[slot]) && in_image(batch->predicted[slot], intrinsics_, kPatchRadius + 1.0) &&
-                             facing[slot] > config_.min_facing_cos;
-      lane_of[slot] = -1;
-      if (batch->in_view[slot] && occlusion) {
-        lane_of[slot] = discs.count;
-        discs.push(pulled[slot], primitives[slot]->normal_world, primitives[slot]->radius);
-      }
-    }
   } else
 #endif
+  {
+    for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+      facing_and_pulled(*primitives[slot], view.position_world, config_.occlusion_sigmas, &facing[slot], &pulled[slot]);
+    }
+  }
+  DiscBatch discs;
+  std::array<std::int32_t, kDiscBatchSize> lane_of{};  // the disc lane of each prediction's occlusion test
   for (std::int32_t slot = 0; slot < batch->count; ++slot) {
-    const Primitive& p = pool[batch->index[slot]];
-    Eigen::Vector3f pulled;
-    batch->in_view[slot] = ok(projected[slot]) && predicted_geometry(p, view, occlusion, batch->predicted[slot], &pulled);
+    batch->in_view[slot] = ok(projected[slot]) && in_image(batch->predicted[slot], intrinsics_, kPatchRadius + 1.0) &&
+                           facing[slot] > config_.min_facing_cos;
     lane_of[slot] = -1;
     if (batch->in_view[slot] && occlusion) {
       lane_of[slot] = discs.count;
-      discs.push(pulled, p.normal_world, p.radius);
+      discs.push(pulled[slot], primitives[slot]->normal_world, primitives[slot]->radius);
     }
   }
   if (discs.count > 0) {

@@ -273,14 +273,9 @@ class ImageFrontEnd final : public MeasurementSource {
   std::size_t cell_of(const Eigen::Vector2d& uv_px) const;
   void track(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   void refit_normals(const Viewpoint& view, PrimitivePoolView& pool);
-  // track()'s prediction of primitive p, projected to `predicted`, up to the occlusion test: inside the
-  // image, facing the camera; with occlusion, *pulled_world is the point the occlusion test takes (the
-  // centre pulled toward the camera by its own uncertainty).
-  bool predicted_geometry(const Primitive& p, const Viewpoint& view, bool occlusion, const Eigen::Vector2d& predicted,
-                          Eigen::Vector3f* pulled_world) const;
   // Predictions of the next alive primitives from `first` on (up to kDiscBatchSize): their projections and
-  // Jacobians in one batch (project_with_jacobian_batch), predicted_geometry, then their occlusion tests in
-  // one lane batch (DepthBufferView::is_visible_batch).
+  // Jacobians in one batch (project_with_jacobian_batch), inside the image and facing the camera, then their
+  // occlusion tests in one lane batch (DepthBufferView::is_visible_batch).
   struct PredictionBatch {
     std::array<PrimitiveIndex, kDiscBatchSize> index{};
     std::array<Eigen::Vector2d, kDiscBatchSize> predicted{};
