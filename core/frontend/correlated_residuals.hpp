@@ -40,8 +40,17 @@ struct PatchResiduals {
   std::array<bool, kPatchPixels> valid{};
 };
 
+// One lag-one correlation from the field's sums: the mean product over `pairs` neighbour pairs against
+// the mean square over `count` pixels, clamped to [0, 0.45] (the truncated separable model stays positive
+// definite below 0.5); 0 for a zero field or no pairs.
+inline double clamped_lag_one_correlation(double products, int pairs, double squares, int count) {
+  if (!(squares > 0.0) || pairs == 0) return 0.0;
+  const double rho = (products / pairs) / (squares / count);
+  return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
+}
+
 // Lag-one correlations of the residual field between horizontal (*rho_x) and vertical (*rho_y)
-// neighbours, clamped to [0, 0.45] (the truncated separable model stays positive definite below 0.5).
+// neighbours (clamped_lag_one_correlation).
 template <int P>
 void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* rho_y) {
   double squares = 0.0;
@@ -67,13 +76,8 @@ void lag_one_correlations(const PatchResiduals<P>& fit, double* rho_x, double* r
       }
     }
   }
-  auto clamp = [&](double products, int pairs) {
-    if (!(squares > 0.0) || pairs == 0) return 0.0;
-    const double rho = (products / pairs) / (squares / count);
-    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
-  };
-  *rho_x = clamp(products_x, pairs_x);
-  *rho_y = clamp(products_y, pairs_y);
+  *rho_x = clamped_lag_one_correlation(products_x, pairs_x, squares, count);
+  *rho_y = clamped_lag_one_correlation(products_y, pairs_y, squares, count);
 }
 
 // Calls add(j, rho) for pixel (x, y)'s right, lower, lower-right and lower-left neighbours j (row-major

@@ -263,14 +263,9 @@ using Float8 = float __attribute__((vector_size(32)));
     if (y + 1 < kPatchSize) products_y += r * load8(pass.rows[4][y + 1]);
   }
   const double squares_sum = sum8(squares);
-  auto clamp = [&](double products) {
-    constexpr double kPairs = kPatchSize * (kPatchSize - 1);
-    if (!(squares_sum > 0.0)) return 0.0;
-    const double rho = (products / kPairs) / (squares_sum / kPatchPixels);
-    return rho < 0.0 ? 0.0 : (rho > 0.45 ? 0.45 : rho);
-  };
-  *rho_x = clamp(sum8(products_x));
-  *rho_y = clamp(sum8(products_y));
+  constexpr int kPairs = kPatchSize * (kPatchSize - 1);  // each way, every pixel in the fit
+  *rho_x = clamped_lag_one_correlation(sum8(products_x), kPairs, squares_sum, kPatchPixels);
+  *rho_y = clamped_lag_one_correlation(sum8(products_y), kPairs, squares_sum, kPatchPixels);
   // Each pixel's correlation-weighted neighbours (right, lower, lower right and lower left, as
   // for_each_correlated_neighbour), a patch row at a time.
   const Float8 weight_x = splat8(static_cast<float>(*rho_x));
