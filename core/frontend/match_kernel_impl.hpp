@@ -292,11 +292,14 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
   float t8[kSize][kGroup];
   float m8[kSize][kGroup];
 #if defined(__AVX__)
-  // A row is one vector: 8 values from the row's start with the eighth lane zeroed; the last row loads
+  // A row is one vector: 8 values from the row's start with the eighth lane zeroed (by a bit mask: one
+  // AND, where GCC builds the equal shuffle with a zero vector from three lane moves); the last row loads
   // from one value earlier and shifts down (no read past the template's 49 values).
+  const vi first_seven = {-1, -1, -1, -1, -1, -1, -1, 0};
+  auto row_of_seven = [&](const float* p) { return reinterpret_cast<vf>(reinterpret_cast<vi>(load(p)) & first_seven); };
   for (int ty = 0; ty + 1 < kSize; ++ty) {
-    store(t8[ty], __builtin_shufflevector(load(tmpl.values + ty * kSize), vf{}, 0, 1, 2, 3, 4, 5, 6, 8));
-    store(m8[ty], __builtin_shufflevector(load(tmpl.mask + ty * kSize), vf{}, 0, 1, 2, 3, 4, 5, 6, 8));
+    store(t8[ty], row_of_seven(tmpl.values + ty * kSize));
+    store(m8[ty], row_of_seven(tmpl.mask + ty * kSize));
   }
   store(t8[kSize - 1], __builtin_shufflevector(load(tmpl.values + kPixels - kGroup), vf{}, 1, 2, 3, 4, 5, 6, 7, 8));
   store(m8[kSize - 1], __builtin_shufflevector(load(tmpl.mask + kPixels - kGroup), vf{}, 1, 2, 3, 4, 5, 6, 7, 8));
@@ -356,14 +359,20 @@ bool refine(const Image& image, const Template& tmpl, std::int32_t x, std::int32
     // The image resampled at the shifted patch and its ring: resampled[j][i] = I(patch (i - 1, j - 1) + d).
     // Bilinear interpolation is linear and shift-invariant, so central differences of the resampled
     // values equal the resampled central-difference gradients: one interpolation per pixel, not three.
+    // The ring's top and bottom rows serve only the vertical differences: their columns 1 .. kGroup (one
+    // group of lanes; each lane's value is the same expression wherever its vector starts), the others
+    // are never read.
     float resampled[kResampled][kResampledStride];
-    for (int j = 0; j < kResampled; ++j) {
+    auto resample = [&](int j, int i) {
       const float* r0 = &block[j + kMargin - 1 + iy][kMargin - 1 + ix];
       const float* r1 = r0 + kBlockStride;
-      for (int i = 0; i < kResampledStride; i += kWidth) {
-        store(&resampled[j][i], w00 * load(r0 + i) + w01 * load(r0 + i + 1) + w10 * load(r1 + i) + w11 * load(r1 + i + 1));
-      }
+      store(&resampled[j][i], w00 * load(r0 + i) + w01 * load(r0 + i + 1) + w10 * load(r1 + i) + w11 * load(r1 + i + 1));
+    };
+    for (int i = 1; i < 1 + kGroup; i += kWidth) resample(0, i);
+    for (int j = 1; j + 1 < kResampled; ++j) {
+      for (int i = 0; i < kResampledStride; i += kWidth) resample(j, i);
     }
+    for (int i = 1; i < 1 + kGroup; i += kWidth) resample(kResampled - 1, i);
     // J^T J and J^T r as lane sums (r = I(p + d) - alpha * t - beta): the tracker's hot path.
     const vf alpha_v = splat(static_cast<float>(alpha));
     const vf beta_v = splat(static_cast<float>(beta));
