@@ -446,14 +446,21 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       // The map and its tilt derivatives from the creating view's Jacobian (from the batch where it made
       // them) and this view's (H).
       Status projected = Status::kOk;
+      Status mapped = Status::kOk;
       if (ahead.creating_projected) {
         H_creating = ahead.H_creating[slot];
         projected = ahead.creating_status[slot];
+        mapped = ahead.plane_status[slot];
+        if (ok(projected) && ok(mapped)) {
+          A = ahead.A[slot];
+          dA = ahead.dA[slot];
+        }
       } else {
         Eigen::Vector2d in_creating;
         projected = project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating);
+        if (ok(projected)) mapped = plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA);
       }
-      if (!ok(projected) || !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
+      if (!ok(projected) || !ok(mapped)) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         reject_observation(i, centre_cell, pool, report);
         continue;
@@ -628,6 +635,13 @@ void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, b
   std::array<Eigen::Vector2d, kDiscBatchSize> uv;
   project_with_jacobian_batch(points.data(), kDiscBatchSize, creating, intrinsics_, uv.data(), batch->H_creating.data(),
                               batch->creating_status.data());
+  // Their plane maps from the Jacobians in both views, in lanes too (a slot whose creating projection
+  // failed gets a map track() does not read).
+  static_assert(kPlaneAffineBatchSize == kDiscBatchSize, "one plane map batch per prediction batch");
+  std::array<const Eigen::Vector3f*, kDiscBatchSize> normals{};
+  for (std::int32_t slot = 0; slot < kDiscBatchSize; ++slot) normals[slot] = &primitives[slot]->normal_world;
+  plane_affine_from_jacobians_batch(batch->H_creating.data(), batch->H.data(), normals.data(), kDiscBatchSize,
+                                    batch->A.data(), batch->dA.data(), batch->plane_status.data());
   batch->creating_projected = true;
 }
 

@@ -285,6 +285,12 @@ class ImageFrontEnd final : public MeasurementSource {
     bool creating_projected = false;
     std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H_creating{};
     std::array<Status, kDiscBatchSize> creating_status{};
+    // With creating_projected: each slot's plane-induced map from this view to its creating view and the
+    // map's tilt derivatives (plane_affine_from_jacobians_batch), valid where creating_status and
+    // plane_status are kOk.
+    std::array<Eigen::Matrix2d, kDiscBatchSize> A{};
+    std::array<std::array<Eigen::Matrix2d, 2>, kDiscBatchSize> dA{};
+    std::array<Status, kDiscBatchSize> plane_status{};
     std::int32_t count = 0;
     std::int32_t next = 0;  // the slot track() takes next
   };
