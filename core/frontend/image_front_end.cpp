@@ -443,17 +443,16 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     Eigen::Matrix<double, 2, 3> H_creating;
     const bool have_creating = ok(view_pose(p.creating_view, &creating));
     if (have_creating) {
-      // The map and its tilt derivatives from the creating view's Jacobian (from the batch where it made
-      // them) and this view's (H).
-      Status projected = Status::kOk;
-      if (ahead.creating_projected) {
+      // The map and its tilt derivatives from the creating view's Jacobian and this view's (H), made in
+      // the prediction batch.
+      const Status projected = ahead.creating_status[slot];
+      const Status mapped = ahead.plane_status[slot];
+      if (ok(projected) && ok(mapped)) {
         H_creating = ahead.H_creating[slot];
-        projected = ahead.creating_status[slot];
-      } else {
-        Eigen::Vector2d in_creating;
-        projected = project_with_jacobian(p.X_world, creating, intrinsics_, &in_creating, &H_creating);
+        A = ahead.A[slot];
+        dA = ahead.dA[slot];
       }
-      if (!ok(projected) || !ok(plane_affine_from_jacobians(H_creating, H, p.normal_world, &A, &dA))) {
+      if (!ok(projected) || !ok(mapped)) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         reject_observation(i, centre_cell, pool, report);
         continue;
@@ -615,20 +614,36 @@ void ImageFrontEnd::predict_batch(PrimitiveIndex first, const Viewpoint& view, b
       if (lane_of[slot] >= 0) batch->in_view[slot] = visible[lane_of[slot]];
     }
   }
-  // All four in view from one creating view (primitives spawned together): their projections there, for
-  // track()'s plane map, in one batch too.
-  batch->creating_projected = false;
-  if (batch->count != kDiscBatchSize) return;
-  const std::uint32_t creating_view = pool[batch->index[0]].creating_view;
-  for (std::int32_t slot = 0; slot < kDiscBatchSize; ++slot) {
-    if (!batch->in_view[slot] || pool[batch->index[slot]].creating_view != creating_view) return;
+  // The in-view primitives' projections into their creating views, for track()'s plane maps: all four
+  // from one creating view (primitives spawned together) in one batch, otherwise one by one (a slot out of
+  // view or without its creating view's pose gets kNotFound, as track()'s view_pose).
+  if (batch->count == 0) return;
+  const std::uint32_t creating_view = primitives[0]->creating_view;
+  bool one_view = batch->count == kDiscBatchSize;
+  for (std::int32_t slot = 0; slot < batch->count && one_view; ++slot) {
+    one_view = batch->in_view[slot] && primitives[slot]->creating_view == creating_view;
   }
   Viewpoint creating;
-  if (!ok(view_pose(creating_view, &creating))) return;
-  std::array<Eigen::Vector2d, kDiscBatchSize> uv;
-  project_with_jacobian_batch(points.data(), kDiscBatchSize, creating, intrinsics_, uv.data(), batch->H_creating.data(),
-                              batch->creating_status.data());
-  batch->creating_projected = true;
+  if (one_view && ok(view_pose(creating_view, &creating))) {
+    std::array<Eigen::Vector2d, kDiscBatchSize> uv;
+    project_with_jacobian_batch(points.data(), kDiscBatchSize, creating, intrinsics_, uv.data(),
+                                batch->H_creating.data(), batch->creating_status.data());
+  } else {
+    for (std::int32_t slot = 0; slot < batch->count; ++slot) {
+      batch->creating_status[slot] = Status::kNotFound;
+      if (!batch->in_view[slot] || !ok(view_pose(primitives[slot]->creating_view, &creating))) continue;
+      Eigen::Vector2d uv;
+      batch->creating_status[slot] =
+          project_with_jacobian(*points[slot], creating, intrinsics_, &uv, &batch->H_creating[slot]);
+    }
+  }
+  // Their plane maps from the Jacobians in both views, in lanes (a slot whose creating projection failed
+  // gets a map track() does not read).
+  static_assert(kPlaneAffineBatchSize == kDiscBatchSize, "one plane map batch per prediction batch");
+  std::array<const Eigen::Vector3f*, kDiscBatchSize> normals{};
+  for (std::int32_t slot = 0; slot < batch->count; ++slot) normals[slot] = &primitives[slot]->normal_world;
+  plane_affine_from_jacobians_batch(batch->H_creating.data(), batch->H.data(), normals.data(), batch->count,
+                                    batch->A.data(), batch->dA.data(), batch->plane_status.data());
 }
 
 bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,

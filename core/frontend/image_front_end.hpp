@@ -281,10 +281,15 @@ class ImageFrontEnd final : public MeasurementSource {
     std::array<Eigen::Vector2d, kDiscBatchSize> predicted{};
     std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H{};
     std::array<bool, kDiscBatchSize> in_view{};  // predicted in the image and not occluded
-    // All four in view with one creating view: X's projection Jacobian there and its status, per slot.
-    bool creating_projected = false;
+    // Per slot: X's projection Jacobian in its creating view and its status
+    // (kNotFound: not in view, or that view's pose is gone), and the plane-induced map from this view to
+    // the creating one with its tilt derivatives (plane_affine_from_jacobians_batch), valid where
+    // creating_status and plane_status are kOk.
     std::array<Eigen::Matrix<double, 2, 3>, kDiscBatchSize> H_creating{};
     std::array<Status, kDiscBatchSize> creating_status{};
+    std::array<Eigen::Matrix2d, kDiscBatchSize> A{};
+    std::array<std::array<Eigen::Matrix2d, 2>, kDiscBatchSize> dA{};
+    std::array<Status, kDiscBatchSize> plane_status{};
     std::int32_t count = 0;
     std::int32_t next = 0;  // the slot track() takes next
   };

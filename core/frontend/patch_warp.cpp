@@ -1,6 +1,7 @@
 #include "core/frontend/patch_warp.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "core/frontend/float4.hpp"
@@ -47,6 +48,129 @@ Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, con
     (*dA)[1] = -w * J_target_inv.row(1);
   }
   return Status::kOk;
+}
+
+namespace {
+
+#if VANTAGE_PATCH_WARP_HAS_AVX
+// plane_affine_from_jacobians for four primitives in AVX lanes (no FMA), each lane the scalar code's
+// operations in the order Eigen evaluates them there (measured on 300,000 random inputs, 0 mismatches;
+// the other orders 4,419 to 373,277): 3-vector squared norms and the 3-term products (H E, H n) as
+// (a0 b0 + a1 b1) + a2 b2, J_target's squared norm as (j00^2 + j01^2) + (j10^2 + j11^2); the 2-term sums of
+// the 2x2 products, the determinant and the inverse as written in Eigen (2-term sums commute exactly); the
+// plane basis's helper axis and cross products with its zeros multiplied as Eigen does. Unused lanes
+// repeat the first primitive.
+__attribute__((target("avx2"))) void plane_affine_lanes4(const Eigen::Matrix<double, 2, 3>* H_ref,
+                                                         const Eigen::Matrix<double, 2, 3>* H_target,
+                                                         const Eigen::Vector3f* const* normal_world, std::int32_t count,
+                                                         Eigen::Matrix2d* A_ref_per_target,
+                                                         std::array<Eigen::Matrix2d, 2>* dA, Status* status) {
+  using Double4 = double __attribute__((vector_size(32)));
+  using Mask4 = std::int64_t __attribute__((vector_size(32)));
+  Double4 f0, f1, f2, r[2][3], t[2][3];
+  for (std::int32_t lane = 0; lane < 4; ++lane) {
+    const std::int32_t k = lane < count ? lane : 0;
+    f0[lane] = static_cast<double>(normal_world[k]->x());
+    f1[lane] = static_cast<double>(normal_world[k]->y());
+    f2[lane] = static_cast<double>(normal_world[k]->z());
+    for (int row = 0; row < 2; ++row) {
+      for (int col = 0; col < 3; ++col) {
+        r[row][col][lane] = H_ref[k](row, col);
+        t[row][col][lane] = H_target[k](row, col);
+      }
+    }
+  }
+  const Double4 zero = Double4{} + 0.0;
+  const Double4 one = zero + 1.0;
+  // The normal, unit length within 1e-3, renormalized.
+  const Double4 length = __builtin_ia32_sqrtpd256((f0 * f0 + f1 * f1) + f2 * f2);
+  const Double4 length_error = length - 1.0;
+  const Double4 abs_length_error = length_error < zero ? -length_error : length_error;
+  Mask4 valid = (length - length == zero) & (abs_length_error <= 1e-3 + zero);
+  const Double4 n0 = f0 / length;
+  const Double4 n1 = f1 / length;
+  const Double4 n2 = f2 / length;
+  // plane_basis: e1 = n x helper normalized (helper the x axis unless n is near it, then the y axis), e2 = n x e1.
+  const Mask4 use_x = (n0 < zero ? -n0 : n0) < 0.9 + zero;
+  const Double4 h0 = use_x ? one : zero;
+  const Double4 h1 = use_x ? zero : one;
+  const Double4 h2 = zero;
+  const Double4 c0 = n1 * h2 - n2 * h1;
+  const Double4 c1 = n2 * h0 - n0 * h2;
+  const Double4 c2 = n0 * h1 - n1 * h0;
+  const Double4 cc = (c0 * c0 + c1 * c1) + c2 * c2;
+  const Double4 c_norm = __builtin_ia32_sqrtpd256(cc);
+  const Mask4 positive = cc > zero;
+  const Double4 e10 = positive ? c0 / c_norm : c0;
+  const Double4 e11 = positive ? c1 / c_norm : c1;
+  const Double4 e12 = positive ? c2 / c_norm : c2;
+  const Double4 e20 = n1 * e12 - n2 * e11;
+  const Double4 e21 = n2 * e10 - n0 * e12;
+  const Double4 e22 = n0 * e11 - n1 * e10;
+  // J = H E for both views.
+  Double4 jr[2][2], jt[2][2], hrn[2], htn[2];
+  for (int row = 0; row < 2; ++row) {
+    jr[row][0] = (r[row][0] * e10 + r[row][1] * e11) + r[row][2] * e12;
+    jr[row][1] = (r[row][0] * e20 + r[row][1] * e21) + r[row][2] * e22;
+    jt[row][0] = (t[row][0] * e10 + t[row][1] * e11) + t[row][2] * e12;
+    jt[row][1] = (t[row][0] * e20 + t[row][1] * e21) + t[row][2] * e22;
+    hrn[row] = (r[row][0] * n0 + r[row][1] * n1) + r[row][2] * n2;
+    htn[row] = (t[row][0] * n0 + t[row][1] * n1) + t[row][2] * n2;
+  }
+  const Double4 det = jt[0][0] * jt[1][1] - jt[1][0] * jt[0][1];
+  const Double4 squared_norm = (jt[0][0] * jt[0][0] + jt[0][1] * jt[0][1]) + (jt[1][0] * jt[1][0] + jt[1][1] * jt[1][1]);
+  valid &= (det < zero ? -det : det) > 1e-9 * squared_norm;
+  const Double4 inv_det = 1.0 / det;
+  Double4 inv[2][2];
+  inv[0][0] = jt[1][1] * inv_det;
+  inv[1][0] = -jt[1][0] * inv_det;
+  inv[0][1] = -jt[0][1] * inv_det;
+  inv[1][1] = jt[0][0] * inv_det;
+  Double4 a[2][2];
+  for (int row = 0; row < 2; ++row) {
+    for (int col = 0; col < 2; ++col) {
+      a[row][col] = jr[row][0] * inv[0][col] + jr[row][1] * inv[1][col];
+      valid &= a[row][col] - a[row][col] == zero;
+    }
+  }
+  // dA_k = -w (row k of J_target^-1), w = H_ref n - A H_target n.
+  Double4 minus_w[2];
+  for (int row = 0; row < 2; ++row) minus_w[row] = -(hrn[row] - (a[row][0] * htn[0] + a[row][1] * htn[1]));
+  for (std::int32_t lane = 0; lane < count; ++lane) {
+    if (valid[lane] == 0) {
+      status[lane] = Status::kInvalidArgument;
+      continue;
+    }
+    status[lane] = Status::kOk;
+    A_ref_per_target[lane] << a[0][0][lane], a[0][1][lane], a[1][0][lane], a[1][1][lane];
+    if (dA == nullptr) continue;
+    for (int k = 0; k < 2; ++k) {
+      dA[lane][k] << minus_w[0][lane] * inv[k][0][lane], minus_w[0][lane] * inv[k][1][lane],
+          minus_w[1][lane] * inv[k][0][lane], minus_w[1][lane] * inv[k][1][lane];
+    }
+  }
+}
+#endif
+
+}  // namespace
+
+void plane_affine_from_jacobians_batch(const Eigen::Matrix<double, 2, 3>* H_ref,
+                                       const Eigen::Matrix<double, 2, 3>* H_target,
+                                       const Eigen::Vector3f* const* normal_world, std::int32_t count,
+                                       Eigen::Matrix2d* A_ref_per_target, std::array<Eigen::Matrix2d, 2>* dA,
+                                       Status* status) {
+  if (count <= 0) return;
+  if (count > kPlaneAffineBatchSize) count = kPlaneAffineBatchSize;
+#if VANTAGE_PATCH_WARP_HAS_AVX
+  if (__builtin_cpu_supports("avx2")) {
+    plane_affine_lanes4(H_ref, H_target, normal_world, count, A_ref_per_target, dA, status);
+    return;
+  }
+#endif
+  for (std::int32_t i = 0; i < count; ++i) {
+    status[i] = plane_affine_from_jacobians(H_ref[i], H_target[i], *normal_world[i], &A_ref_per_target[i],
+                                            dA != nullptr ? &dA[i] : nullptr);
+  }
 }
 
 namespace {

@@ -40,6 +40,18 @@ Status plane_affine_from_jacobians(const Eigen::Matrix<double, 2, 3>& H_ref, con
                                    const Eigen::Vector3f& normal_world, Eigen::Matrix2d* A_ref_per_target,
                                    std::array<Eigen::Matrix2d, 2>* dA);
 
+// plane_affine_from_jacobians for up to kPlaneAffineBatchSize primitives (the tracker's prediction batch):
+// four at a time in AVX lanes where the CPU has AVX2 (x86-64; elsewhere one by one), each lane the scalar
+// function's operations in the order Eigen evaluates them (no FMA): the same bits on x86-64 (core test).
+// H_ref, H_target, normal_world, status hold count entries, A_ref_per_target and dA (may be null) too,
+// written only where status[i] is kOk.
+inline constexpr std::int32_t kPlaneAffineBatchSize = 4;
+void plane_affine_from_jacobians_batch(const Eigen::Matrix<double, 2, 3>* H_ref,
+                                       const Eigen::Matrix<double, 2, 3>* H_target,
+                                       const Eigen::Vector3f* const* normal_world, std::int32_t count,
+                                       Eigen::Matrix2d* A_ref_per_target, std::array<Eigen::Matrix2d, 2>* dA,
+                                       Status* status);
+
 // The normal's uncertainty in the warp. dA_k = dA / dt_k for a tilt t_k (rad) of the normal about two
 // orthogonal axes of its plane (analytic, see plane_affine_from_jacobians). Errors as plane_affine.
 Status plane_affine_tilt_derivatives(const Eigen::Vector3d& X_world, const Eigen::Vector3f& normal_world,
