@@ -260,16 +260,18 @@ TEST_CASE("the consider update stays consistent under an error common to all obs
   const int trials = 1000;
   for (int trial = 0; trial < trials; ++trial) {
     Primitive consider;
-    consider.X_world = truth + prior.matrixL() * Eigen::Vector3d(z(rng), z(rng), z(rng));
+    // Braces, not parentheses, around several draws: a braced list is evaluated left to right, a call's
+    // arguments in an unspecified order (x86-64 and aarch64 would test different samples).
+    consider.X_world = truth + prior.matrixL() * Eigen::Vector3d{z(rng), z(rng), z(rng)};
     consider.Sigma_world = Sigma0;
     Primitive plain = consider;
     CommonObservationError common;
     common.covariance_px2 = P_c;
-    const Eigen::Vector2d c(std::sqrt(P_c(0, 0)) * z(rng), std::sqrt(P_c(1, 1)) * z(rng));
+    const Eigen::Vector2d c{std::sqrt(P_c(0, 0)) * z(rng), std::sqrt(P_c(1, 1)) * z(rng)};
     for (const Viewpoint& view : views) {
       Eigen::Vector2d uv;
       REQUIRE(ok(project(truth, view, k, &uv)));
-      const Eigen::Vector2d o = uv + c + std::sqrt(R(0, 0)) * Eigen::Vector2d(z(rng), z(rng));
+      const Eigen::Vector2d o = uv + c + std::sqrt(R(0, 0)) * Eigen::Vector2d{z(rng), z(rng)};
       config.R_px2 = R;
       REQUIRE(ok(iterated_consider_update(consider, &common, o, view, k, config, 5, nullptr)));
       config.R_px2 = R + P_c;  // the same total per observation, taken as independent
@@ -310,14 +312,14 @@ TEST_CASE("the consider update from the caller's projection at the prior equals 
   int accepted = 0;
   for (int trial = 0; trial < 50; ++trial) {
     Primitive own;
-    own.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
+    own.X_world = Eigen::Vector3d{z(rng), z(rng), z(rng)};
     own.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
     Primitive given = own;
     CommonObservationError common_own = example_common_error();
     CommonObservationError common_given = common_own;
     ProjectionAtPrior at_prior;
     REQUIRE(ok(project_with_jacobian(own.X_world, view, k, &at_prior.predicted_px, &at_prior.H)));
-    const Eigen::Vector2d o = at_prior.predicted_px + Eigen::Vector2d(2.0 * z(rng), 2.0 * z(rng));
+    const Eigen::Vector2d o = at_prior.predicted_px + Eigen::Vector2d{2.0 * z(rng), 2.0 * z(rng)};
     EkfStats stats_own;
     EkfStats stats_given;
     const Status a = iterated_consider_update(own, &common_own, o, view, k, config, 3, &stats_own);
@@ -374,7 +376,7 @@ TEST_CASE("the consider update's covariance is the Joseph form's, also where an 
   // Ordinary updates (Sigma - K S K^T): the Joseph form's covariance to rounding.
   for (int trial = 0; trial < 50; ++trial) {
     Primitive p;
-    p.X_world = Eigen::Vector3d(z(rng), z(rng), z(rng));
+    p.X_world = Eigen::Vector3d{z(rng), z(rng), z(rng)};
     p.Sigma_world = Eigen::Vector3d(2.0, 0.05, 0.05).asDiagonal();
     CommonObservationError common = example_common_error();
     config.R_px2 = 0.04 * Eigen::Matrix2d::Identity();
@@ -382,7 +384,7 @@ TEST_CASE("the consider update's covariance is the Joseph form's, also where an 
     const CommonObservationError prior_common = common;
     Eigen::Vector2d o;
     REQUIRE(ok(project(p.X_world, view, k, &o)));
-    o += Eigen::Vector2d(0.3 * z(rng), 0.3 * z(rng));
+    o += Eigen::Vector2d{0.3 * z(rng), 0.3 * z(rng)};
     Status status = Status::kOk;
     // One iteration: the EKF's step, H and K at its result.
     REQUIRE_NO_ALLOCATION(status = iterated_consider_update(p, &common, o, view, k, config, 1, nullptr));
@@ -396,7 +398,7 @@ TEST_CASE("the consider update's covariance is the Joseph form's, also where an 
   int pinned = 0;
   for (int trial = 0; trial < 50; ++trial) {
     Primitive p;
-    p.X_world = Eigen::Vector3d(0.1 * z(rng), 0.1 * z(rng), 0.1 * z(rng));
+    p.X_world = Eigen::Vector3d{0.1 * z(rng), 0.1 * z(rng), 0.1 * z(rng)};
     p.Sigma_world = Eigen::Vector3d(1e-4, 1e4, 1e4).asDiagonal();
     CommonObservationError common;
     config.R_px2 = 1e-10 * Eigen::Matrix2d::Identity();

@@ -151,7 +151,13 @@ struct NoiseSource {
     state = state * 6364136223846793005ull + 1442695040888963407ull;
     return (static_cast<double>(state >> 11) + 0.5) * (1.0 / 9007199254740992.0);
   }
-  double gaussian() { return std::sqrt(-2.0 * std::log(uniform())) * std::cos(2.0 * 3.14159265358979323846 * uniform()); }
+  // One draw per statement: the operands of one expression are evaluated in an unspecified order, which
+  // differs between the x86-64 and aarch64 builds (they would test different noise).
+  double gaussian() {
+    const double u_radius = uniform();
+    const double u_angle = uniform();
+    return std::sqrt(-2.0 * std::log(u_radius)) * std::cos(2.0 * 3.14159265358979323846 * u_angle);
+  }
 };
 
 // Value-noise image (features feature_px across) moved by (dx, dy), with gain, offset and Gaussian noise.
@@ -405,7 +411,9 @@ TEST_CASE("the subpixel fit's covariance follows the empirical error spread unde
     int count = 0;
     int tried = 0;
     for (int trial = 0; trial < 12; ++trial) {
-      const Eigen::Vector2d shift(4.0 * noise.uniform() - 2.0, 4.0 * noise.uniform() - 2.0);
+      const double shift_x_px = 4.0 * noise.uniform() - 2.0;
+      const double shift_y_px = 4.0 * noise.uniform() - 2.0;
+      const Eigen::Vector2d shift(shift_x_px, shift_y_px);
       const double gain = 0.8 + 0.4 * noise.uniform();
       const auto moved =
           noisy_image(w, h, shift.x(), shift.y(), feature_px, gain, 10.0 * noise.uniform(), sigma_gray, noise);
@@ -612,7 +620,9 @@ TEST_CASE("the window search agrees with the plain per-pixel search: gate, peak,
     Eigen::Matrix2d S;
     S << sx * sx, rho * sx * sy, rho * sx * sy, sy * sy;
     WindowQuery query;
-    query.predicted_px = Eigen::Vector2d(x + noise.uniform() - 0.5 + 0.6, y + noise.uniform() - 0.5 - 0.4);
+    const double jitter_x_px = noise.uniform() - 0.5;
+    const double jitter_y_px = noise.uniform() - 0.5;
+    query.predicted_px = Eigen::Vector2d(x + jitter_x_px + 0.6, y + jitter_y_px - 0.4);
     query.S_inv = S.inverse();
     query.half_width_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sx)), 1, 6);
     query.half_height_px = std::clamp(static_cast<std::int32_t>(std::ceil(3.0 * sy)), 1, 6);

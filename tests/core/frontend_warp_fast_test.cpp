@@ -81,9 +81,10 @@ TEST_CASE("the analytic tilt derivatives of the plane-induced map match finite d
        {Eigen::Vector3d(40.0, 2.0, 0.5), Eigen::Vector3d(28.0, 26.0, 10.0), Eigen::Vector3d(30.0, -20.0, -15.0)}) {
     const Viewpoint target = vantage::test::looking_at_origin(target_position);
     for (int trial = 0; trial < 8; ++trial) {
-      const Eigen::Vector3d X(gauss(rng), 3.0 * gauss(rng), 3.0 * gauss(rng));
-      const Eigen::Vector3d n = (Eigen::Vector3d(1.0, 0.0, 0.0) + 0.4 * Eigen::Vector3d(gauss(rng), gauss(rng),
-                                                                                       gauss(rng))).normalized();
+      // Braced lists: their draws are evaluated left to right on every platform (a call's arguments are not).
+      const Eigen::Vector3d X{gauss(rng), 3.0 * gauss(rng), 3.0 * gauss(rng)};
+      const Eigen::Vector3d n = (Eigen::Vector3d(1.0, 0.0, 0.0) + 0.4 * Eigen::Vector3d{gauss(rng), gauss(rng),
+                                                                                       gauss(rng)}).normalized();
       Eigen::Vector2d uv;
       Eigen::Matrix<double, 2, 3> H_ref;
       Eigen::Matrix<double, 2, 3> H_target;
