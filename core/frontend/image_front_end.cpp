@@ -445,18 +445,14 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (have_creating) {
       // The map and its tilt derivatives from the creating view's Jacobian and this view's (H), made in
       // the prediction batch.
-      const Status projected = ahead.creating_status[slot];
-      const Status mapped = ahead.plane_status[slot];
-      if (ok(projected) && ok(mapped)) {
-        H_creating = ahead.H_creating[slot];
-        A = ahead.A[slot];
-        dA = ahead.dA[slot];
-      }
-      if (!ok(projected) || !ok(mapped)) {
+      if (!ok(ahead.creating_status[slot]) || !ok(ahead.plane_status[slot])) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         reject_observation(i, centre_cell, pool, report);
         continue;
       }
+      H_creating = ahead.H_creating[slot];
+      A = ahead.A[slot];
+      dA = ahead.dA[slot];
     }
     Eigen::Matrix2d B;
     reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
