@@ -100,18 +100,6 @@ VANTAGE_MATCH_INLINE vf sum_octs(vf abcd, vf efgh) {
          __builtin_shufflevector(abcd, efgh, 4, 5, 6, 7, 12, 13, 14, 15);
 }
 #endif
-// sums[i] = the sum of the lanes of v[i], i < 12.
-VANTAGE_MATCH_INLINE void sum_lanes12(const vf* v, float* sums) {
-#if defined(__AVX__)
-  store(sums, sum_octs(sum_quads(sum_pairs(v[0], v[1]), sum_pairs(v[2], v[3])),
-                       sum_quads(sum_pairs(v[4], v[5]), sum_pairs(v[6], v[7]))));
-  float rest[8];
-  store(rest, sum_octs(sum_quads(sum_pairs(v[8], v[9]), sum_pairs(v[10], v[11])), vf{}));
-  for (int i = 0; i < 4; ++i) sums[8 + i] = rest[i];
-#else
-  for (int i = 0; i < 12; i += 4) store(sums + i, sum_quads(sum_pairs(v[i], v[i + 1]), sum_pairs(v[i + 2], v[i + 3])));
-#endif
-}
 // sums[i] = the sum of the lanes of v[i], i < 8.
 VANTAGE_MATCH_INLINE void sum_lanes8(const vf* v, float* sums) {
 #if defined(__AVX__)
@@ -119,6 +107,17 @@ VANTAGE_MATCH_INLINE void sum_lanes8(const vf* v, float* sums) {
                        sum_quads(sum_pairs(v[4], v[5]), sum_pairs(v[6], v[7]))));
 #else
   for (int i = 0; i < 8; i += 4) store(sums + i, sum_quads(sum_pairs(v[i], v[i + 1]), sum_pairs(v[i + 2], v[i + 3])));
+#endif
+}
+// sums[i] = the sum of the lanes of v[i], i < 12: the first eight as sum_lanes8, the last four by one more tree.
+VANTAGE_MATCH_INLINE void sum_lanes12(const vf* v, float* sums) {
+  sum_lanes8(v, sums);
+#if defined(__AVX__)
+  float rest[8];
+  store(rest, sum_octs(sum_quads(sum_pairs(v[8], v[9]), sum_pairs(v[10], v[11])), vf{}));
+  for (int i = 0; i < 4; ++i) sums[8 + i] = rest[i];
+#else
+  store(sums + 8, sum_quads(sum_pairs(v[8], v[9]), sum_pairs(v[10], v[11])));
 #endif
 }
 VANTAGE_MATCH_INLINE vf max_zero(vf v) { return v > vf{} ? v : vf{}; }
