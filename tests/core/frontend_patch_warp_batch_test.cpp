@@ -1,7 +1,6 @@
 // The plane-induced map in lanes (plane_affine_from_jacobians_batch) against the scalar
 // plane_affine_from_jacobians it stands for in the tracker's prediction batch.
 #include <array>
-#include <cstring>
 #include <limits>
 #include <random>
 
@@ -11,15 +10,12 @@
 #include "core/frontend/patch_warp.hpp"
 #include "core/geometry/projection.hpp"
 #include "tests/support/no_allocation.hpp"
+#include "tests/support/same_bits.hpp"
 
 using namespace vantage;
+using vantage::test::same_bits;
 
 namespace {
-
-template <typename Derived>
-bool same_bits(const Eigen::MatrixBase<Derived>& a, const Eigen::MatrixBase<Derived>& b) {
-  return std::memcmp(a.derived().data(), b.derived().data(), sizeof(typename Derived::Scalar) * a.size()) == 0;
-}
 
 template <typename Derived>
 bool close(const Eigen::MatrixBase<Derived>& a, const Eigen::MatrixBase<Derived>& b) {

@@ -1,12 +1,12 @@
 #include <catch2/catch.hpp>
 
 #include <array>
-#include <cstring>
 #include <limits>
 #include <random>
 
 #include "core/geometry/projection.hpp"
 #include "tests/support/no_allocation.hpp"
+#include "tests/support/same_bits.hpp"
 
 using namespace vantage;
 
@@ -159,8 +159,8 @@ TEST_CASE("the batch projection equals project_with_jacobian point by point") {
       }
       ++compared;
 #if defined(__x86_64__)
-      CHECK(std::memcmp(uv[i].data(), uv_one.data(), sizeof uv_one) == 0);
-      CHECK(std::memcmp(H[i].data(), H_one.data(), sizeof H_one) == 0);
+      CHECK(test::same_bits(uv[i], uv_one));
+      CHECK(test::same_bits(H[i], H_one));
 #else
       CHECK((uv[i] - uv_one).norm() <= 1e-12 * uv_one.norm());
       CHECK((H[i] - H_one).norm() <= 1e-12 * H_one.norm());
