@@ -13,6 +13,7 @@
 #include "core/frontend/surface_fit.hpp"
 #include "core/frontend/triangulation.hpp"
 #include "core/geometry/projection.hpp"
+#include "core/image/binomial_smooth.hpp"
 
 namespace vantage {
 
@@ -277,7 +278,20 @@ std::size_t ImageFrontEnd::cell_of(const Eigen::Vector2d& uv_px) const {
   return static_cast<std::size_t>(cy) * cells_x_ + cx;
 }
 
+GrayImageView ImageFrontEnd::working_frame(const GrayImageView& image,
+                                           GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight>* into) const {
+  if (!config_.presmooth) return image;
+  // Neither can fail: check_frame() took the intrinsics' size, which configure() bounded by the capacity.
+  (void)into->resize(image.width_px, image.height_px);
+  (void)binomial_smooth3(image, into->view());
+  return into->view().as_const();
+}
+
 void ImageFrontEnd::remember(const GrayImageView& image, const Viewpoint& view) {
+  previous_view_ = view;
+  view_poses_[next_view_index_ % kFrontEndMaxViews] = view;
+  ++next_view_index_;
+  if (image.pixels == previous_image_.view().as_const().pixels) return;  // smoothed into place
   // resize cannot fail: configure() bounded the size by the buffer's capacity.
   if (!ok(previous_image_.resize(image.width_px, image.height_px))) return;
   const MutableGrayImageView copy = previous_image_.view();
@@ -286,9 +300,6 @@ void ImageFrontEnd::remember(const GrayImageView& image, const Viewpoint& view) 
     std::uint8_t* dst = copy.pixels + static_cast<std::ptrdiff_t>(y) * copy.stride_bytes;
     for (std::int32_t x = 0; x < image.width_px; ++x) dst[x] = src[x];
   }
-  previous_view_ = view;
-  view_poses_[next_view_index_ % kFrontEndMaxViews] = view;
-  ++next_view_index_;
 }
 
 Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& first_view, const GrayImageView& second,
@@ -314,8 +325,10 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   next_view_index_ = 1;
   forget_primitive_tables();
   reset_cells();
-  spawn(first, first_view, first_index, second, second_view, pool, out);
-  remember(second, second_view);
+  const GrayImageView first_frame = working_frame(first, &smoothed_image_);
+  const GrayImageView second_frame = working_frame(second, &previous_image_);
+  spawn(first_frame, first_view, first_index, second_frame, second_view, pool, out);
+  remember(second_frame, second_view);
   initialized_ = true;
   ++stats_.frames_accepted;
   if (out.spawned > 0) pool.mark_modified();
@@ -343,16 +356,17 @@ Status ImageFrontEnd::update(const GrayImageView& image, const Viewpoint& view, 
   }
   const Status status = check_frame(image, view);
   if (!ok(status)) return status;
+  const GrayImageView frame = working_frame(image, &smoothed_image_);
   reset_cells();
-  track(image, view, pool, out);
+  track(frame, view, pool, out);
   refit_normals(view, pool);
   if (config_.merge_enabled) merge_neighbours(view, pool, out);
   // A new view from (almost) the previous position has no baseline to triangulate new surface from.
   if ((view.position_world - previous_view_.position_world).norm() > 1e-6 * (1.0 + view.position_world.norm())) {
     const std::uint32_t index = next_view_index_;
-    spawn(image, view, index, previous_image_.view().as_const(), previous_view_, pool, out);
+    spawn(frame, view, index, previous_image_.view().as_const(), previous_view_, pool, out);
   }
-  remember(image, view);
+  remember(frame, view);
   ++stats_.frames_accepted;
   if (out.updated > 0 || out.spawned > 0 || out.merged > 0) pool.mark_modified();
   return Status::kOk;

@@ -79,6 +79,11 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--keep-unsearchable", options.keep_unsearchable,
                "image front end: keep an unconsumed primitive whose 3-sigma ellipse exceeds the search window "
                "(default: erase it so its region is spawned again)");
+  app.add_flag("--presmooth", options.presmooth,
+               "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
+  app.add_option("--match-floor-px", options.match_sigma_floor_px,
+                 "image front end: standard deviation (px) added to every match's own (default 0.05)")
+      ->check(CLI::Range(0.001, 2.0));
   app.add_option("--direct-fit-px", options.direct_fit_max_px,
                  "image front end: match a primitive whose prior 3-sigma ellipse is within this many pixels by the "
                  "subpixel fit from its prediction, searching only if that fails (default 1; 0: always search)")

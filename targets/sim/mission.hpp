@@ -36,6 +36,10 @@ struct MissionOptions {
   std::uint32_t unconsumed_after = 3;
   // Image front end: keep unconsumed primitives the search window cannot cover (FrontEndConfig::erase_unsearchable).
   bool keep_unsearchable = false;
+  // Image front end: FrontEndConfig::presmooth (the 3x3 binomial low-pass of every frame) and
+  // match_sigma_floor_px (px added in quadrature to every match's standard deviation).
+  bool presmooth = false;
+  double match_sigma_floor_px = 0.05;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = 1.0;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and

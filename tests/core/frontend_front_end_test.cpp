@@ -6,6 +6,8 @@
 #include <catch2/catch.hpp>
 
 #include "core/frontend/image_front_end.hpp"
+#include "core/geometry/projection.hpp"
+#include "core/image/binomial_smooth.hpp"
 #include "tests/core/frontend_test_scene.hpp"
 #include "tests/support/no_allocation.hpp"
 
@@ -686,4 +688,65 @@ TEST_CASE("spawn normal uncertainty: a new primitive's covariance also holds the
   CHECK(n_with <= n_without);
   CHECK(n_with >= 0.95 * n_without);
   CHECK(sigma_with > 1.02 * sigma_without);
+}
+
+TEST_CASE("presmooth: templates come from the low-passed frames, tracking still works, without allocating") {
+  Scene scene;
+  FrontEndConfig config = plane_config();
+  config.presmooth = true;
+  g_pool.clear();
+  REQUIRE(ok(g_front_end.configure(scene.k, config)));
+  const Viewpoint first = first_view();
+  const Viewpoint second = second_view();
+  const Viewpoint third = third_view();
+  const auto a = scene.render(first);
+  const auto b = scene.render(second);
+  const auto c = scene.render(third);
+  UpdateReport report;
+  Status status = Status::kOk;
+  REQUIRE_NO_ALLOCATION(status = g_front_end.initialize(vantage::test::view_of(a, scene.k), first,
+                                                        vantage::test::view_of(b, scene.k), second, g_pool, &report));
+  REQUIRE(ok(status));
+  REQUIRE(report.spawned > 200u);
+  // Every new primitive's patch is the smoothed first frame's 7 x 7 around its seed pixel, not the raw frame's.
+  std::vector<std::uint8_t> smoothed(a.size());
+  const MutableGrayImageView smoothed_view{smoothed.data(), scene.k.width_px, scene.k.height_px, scene.k.width_px};
+  REQUIRE(ok(binomial_smooth3(vantage::test::view_of(a, scene.k), smoothed_view)));
+  int patches = 0;
+  int smoothed_equal = 0;
+  int raw_equal = 0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    const Primitive& p = g_pool[i];
+    Eigen::Vector2d uv;
+    REQUIRE(ok(project(p.X_world, first, scene.k, &uv)));
+    const int sx = static_cast<int>(std::round((uv.x() - 2.0) / 4.0) * 4.0 + 2.0);
+    const int sy = static_cast<int>(std::round((uv.y() - 2.0) / 4.0) * 4.0 + 2.0);
+    bool same_smoothed = true;
+    bool same_raw = true;
+    for (int j = 0; j < kPatchPixels; ++j) {
+      const int x = sx + j % kPatchSize - kPatchRadius;
+      const int y = sy + j / kPatchSize - kPatchRadius;
+      same_smoothed = same_smoothed && p.patch[j] == smoothed_view.at(x, y);
+      same_raw = same_raw && p.patch[j] == a[static_cast<std::size_t>(y) * scene.k.width_px + x];
+    }
+    ++patches;
+    smoothed_equal += same_smoothed ? 1 : 0;
+    raw_equal += same_raw ? 1 : 0;
+  }
+  REQUIRE(patches > 200);
+  CHECK(smoothed_equal == patches);
+  CHECK(raw_equal == 0);
+  REQUIRE_NO_ALLOCATION(status = g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report));
+  REQUIRE(ok(status));
+  CHECK(report.matched >= 0.8 * report.predicted_in_view);
+  CHECK(report.updated >= 0.9 * report.matched);
+  // A bad frame is refused before it is smoothed: the model and the previous frame stay as they were.
+  const double digest = pool_digest(g_pool);
+  const std::vector<std::uint8_t> black(a.size(), 0);
+  CHECK(g_front_end.update(vantage::test::view_of(black, scene.k), third, g_pool, &report) == Status::kUnusableImage);
+  CHECK(pool_digest(g_pool) == digest);
+  const Viewpoint fourth = vantage::test::looking_at_origin({39.0, 4.0, -6.0});
+  REQUIRE(ok(g_front_end.update(vantage::test::view_of(scene.render(fourth), scene.k), fourth, g_pool, &report)));
+  CHECK(report.updated >= 0.8 * report.predicted_in_view);
 }
