@@ -373,9 +373,13 @@ SceneRun run_scene(const Scene& scene) {
   return out;
 }
 
-sim::SceneConfig textured_scene() {
+// The paper's camera, at its full 640x480 (the missions') or at half of it with the same field of view.
+enum class Resolution { kHalfVga, kVga };
+
+sim::SceneConfig textured_scene(Resolution resolution) {
   sim::SceneConfig config = sim::SceneConfig::paper_defaults();
   config.shading.pixel_noise_sigma = 1.0;  // a little sensor noise, as a real camera has
+  if (resolution == Resolution::kVga) return config;
   // Half VGA with the paper's field of view keeps the suite quick in Debug and under ASan.
   config.intrinsics.width_px = 320;
   config.intrinsics.height_px = 240;
@@ -387,16 +391,16 @@ sim::SceneConfig textured_scene() {
 }
 
 // The plane x = 0, 80 x 80 units, facing +x, seen on an arc of views (small-baseline pair first).
-const SceneRun& plane_run() {
-  static const std::unique_ptr<SceneRun> result = [] {
+std::unique_ptr<SceneRun> make_plane_run(Resolution resolution) {
+  {
     sim::TriangleMesh mesh;
     mesh.vertices = {Eigen::Vector3f(0, -40, -40), Eigen::Vector3f(0, 40, -40), Eigen::Vector3f(0, 40, 40),
                      Eigen::Vector3f(0, -40, 40)};
     mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
-    const sim::SceneConfig scene_config = textured_scene();
+    const sim::SceneConfig scene_config = textured_scene(resolution);
     const sim::SimWorld world(scene_config, mesh);
     Scene scene;
-    scene.name = "plane";
+    scene.name = resolution == Resolution::kVga ? "plane at 640x480" : "plane";
     scene.config = &scene_config;
     scene.world = &world;
     const double azimuths[] = {0.0, 1.5, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0};
@@ -416,17 +420,16 @@ const SceneRun& plane_run() {
       return true;
     };
     return std::make_unique<SceneRun>(run_scene(scene));
-  }();
-  return *result;
+  }
 }
 
 // The paper's bunny (normalized by sim_hal) on a horizontal arc at the viewing distance.
-const SceneRun& bunny_run() {
-  static const std::unique_ptr<SceneRun> result = [] {
-    const sim::SceneConfig scene_config = textured_scene();
+std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution) {
+  {
+    const sim::SceneConfig scene_config = textured_scene(resolution);
     const sim::SimWorld world(scene_config);
     Scene scene;
-    scene.name = "bunny";
+    scene.name = resolution == Resolution::kVga ? "bunny at 640x480" : "bunny";
     scene.config = &scene_config;
     scene.world = &world;
     for (double az : {0.0, 1.5, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0}) {
@@ -454,7 +457,24 @@ const SceneRun& bunny_run() {
       return c.found ? c.distance : 100.0;
     };
     return std::make_unique<SceneRun>(run_scene(scene));
-  }();
+  }
+}
+
+// Each scene runs once per test binary, on first use.
+const SceneRun& plane_run() {
+  static const std::unique_ptr<SceneRun> result = make_plane_run(Resolution::kHalfVga);
+  return *result;
+}
+const SceneRun& bunny_run() {
+  static const std::unique_ptr<SceneRun> result = make_bunny_run(Resolution::kHalfVga);
+  return *result;
+}
+const SceneRun& plane_run_vga() {
+  static const std::unique_ptr<SceneRun> result = make_plane_run(Resolution::kVga);
+  return *result;
+}
+const SceneRun& bunny_run_vga() {
+  static const std::unique_ptr<SceneRun> result = make_bunny_run(Resolution::kVga);
   return *result;
 }
 
@@ -503,4 +523,30 @@ TEST_CASE("front end NEES on the bunny lies in the 95% chi-square band", "[!shou
   const SceneRun& bunny = bunny_run();
   CHECK(bunny.all.mean_nees >= bunny.all.band_low);
   CHECK(bunny.all.mean_nees <= bunny.all.band_high);
+}
+
+// The same band at the missions' 640x480 (four times the primitives; hidden: `integration_tests "[vga]"`,
+// 3 s in Release, too slow for the Debug and ASan suites). KNOWN TO FAIL, further from the band than at
+// 320x240 (core/frontend/README.md, "At the missions' resolution").
+TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga][!shouldfail]") {
+  const SceneRun& plane = plane_run_vga();
+  CHECK(plane.all.mean_nees >= plane.all.band_low);
+  CHECK(plane.all.mean_nees <= plane.all.band_high);
+  CHECK(plane.tracked.mean_nees >= plane.tracked.band_low);
+  CHECK(plane.tracked.mean_nees <= plane.tracked.band_high);
+}
+
+TEST_CASE("at 640x480, front end NEES on the bunny lies in the 95% chi-square band", "[.][vga][!shouldfail]") {
+  const SceneRun& bunny = bunny_run_vga();
+  CHECK(bunny.all.mean_nees >= bunny.all.band_low);
+  CHECK(bunny.all.mean_nees <= bunny.all.band_high);
+}
+
+// The oracle at 640x480: the estimator stays consistent, so what the front end loses there is its matches'.
+TEST_CASE("at 640x480, the oracle's iterated EKF without a gate is consistent (plane and bunny)", "[.][vga]") {
+  for (const SceneRun* run : {&plane_run_vga(), &bunny_run_vga()}) {
+    CHECK(run->oracle_iterated.mean_nees >= run->oracle_iterated.band_low);
+    CHECK(run->oracle_iterated.mean_nees <= run->oracle_iterated.band_high);
+    CHECK(run->oracle_iterated.above_q99 < 0.02);
+  }
 }
