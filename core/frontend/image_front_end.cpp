@@ -278,6 +278,8 @@ std::size_t ImageFrontEnd::cell_of(const Eigen::Vector2d& uv_px) const {
   return static_cast<std::size_t>(cy) * cells_x_ + cx;
 }
 
+static_assert(kFrontEndMaxWidth <= kBinomialSmoothMaxWidth, "every frame the front end takes can be smoothed");
+
 GrayImageView ImageFrontEnd::working_frame(const GrayImageView& image,
                                            GrayImageBuffer<kFrontEndMaxWidth, kFrontEndMaxHeight>* into) const {
   if (!config_.presmooth) return image;
@@ -291,7 +293,7 @@ void ImageFrontEnd::remember(const GrayImageView& image, const Viewpoint& view) 
   previous_view_ = view;
   view_poses_[next_view_index_ % kFrontEndMaxViews] = view;
   ++next_view_index_;
-  if (image.pixels == previous_image_.view().as_const().pixels) return;  // smoothed into place
+  if (image.pixels == previous_image_.view().pixels) return;  // initialize() smoothed it into place
   // resize cannot fail: configure() bounded the size by the buffer's capacity.
   if (!ok(previous_image_.resize(image.width_px, image.height_px))) return;
   const MutableGrayImageView copy = previous_image_.view();

@@ -43,8 +43,9 @@ inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 struct FrontEndConfig {
   // Low-pass every frame before anything reads it (core/image/binomial_smooth.hpp, 3x3 binomial), so the
   // matcher resamples a band-limited image: seeds, templates and matches all see the smoothed frame. Off
-  // by default: it raised the simulated missions' coverage (with match_sigma_floor_px 0.08) but tripled
-  // the consistency test's bunny NEES at 320x240 (README, "Pre-smoothing").
+  // by default: the matches are no more accurate with it while their fit covariances shrink, so the filter
+  // gets more over-confident (the missions' gate diagnostics; the consistency test's bunny NEES triples at
+  // 320x240) (README, "Pre-smoothing").
   bool presmooth = false;
   // Seeds: one candidate pixel per seed_stride_px x seed_stride_px cell, if its patch has contrast.
   std::int32_t seed_stride_px = 4;

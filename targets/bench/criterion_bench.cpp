@@ -9,7 +9,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
-#include <ctime>
 #include <memory>
 #include <string>
 #include <thread>
@@ -18,12 +17,14 @@
 #include "core/criterion/criterion_model.hpp"
 #include "core/criterion/view_grid.hpp"
 #include "targets/bench/bench_models.hpp"
+#include "targets/bench/thread_cpu_time.hpp"
 
 namespace {
 
 using vantage::CriterionModel;
 using vantage::CriterionScratch;
 using vantage::ViewGrid;
+using vantage::bench::thread_cpu_s;
 
 constexpr int kMaxThreads = 2;
 constexpr std::int32_t kGridSide = 60;
@@ -66,12 +67,6 @@ Fixture* fixture(benchmark::State& state) {
   }
   if (!f) state.SkipWithError(error.c_str());
   return f.get();
-}
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 // Whole grid per iteration, rows of cells shared out dynamically between the threads.

@@ -5,8 +5,6 @@
 // Run: vantage-bench --benchmark_filter=FrontEnd --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
-#include <time.h>
-
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -20,6 +18,7 @@
 #include "core/model/primitive_pool.hpp"
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/world/sim_world.hpp"
+#include "targets/bench/thread_cpu_time.hpp"
 
 namespace {
 
@@ -144,13 +143,11 @@ void run_updates(benchmark::State& state, const Views& views, Prepare prepare) {
       return;
     }
     state.ResumeTiming();
-    timespec start{};
-    timespec stop{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &start);
+    const double start_s = vantage::bench::thread_cpu_s();
     const vantage::Status status = g_front_end.update(g_frame.view().as_const(), views.frame, g_pool, &report);
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &stop);
+    const double stop_s = vantage::bench::thread_cpu_s();
     benchmark::DoNotOptimize(status);
-    state.SetIterationTime(static_cast<double>(stop.tv_sec - start.tv_sec) + 1e-9 * (stop.tv_nsec - start.tv_nsec));
+    state.SetIterationTime(stop_s - start_s);
     predicted += report.predicted_in_view;
     matched += report.matched;
     updated += report.updated;
@@ -212,14 +209,12 @@ void BM_BinomialSmoothVga(benchmark::State& state) {
   if (!set_up(state, &views)) return;
   static vantage::GrayImageBuffer<640, 480> smoothed;
   for (auto _ : state) {
-    timespec start{};
-    timespec stop{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &start);
+    const double start_s = vantage::bench::thread_cpu_s();
     const vantage::Status status = vantage::binomial_smooth3(g_frame.view().as_const(), smoothed.view());
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &stop);
+    const double stop_s = vantage::bench::thread_cpu_s();
     benchmark::DoNotOptimize(status);
     benchmark::ClobberMemory();
-    state.SetIterationTime(static_cast<double>(stop.tv_sec - start.tv_sec) + 1e-9 * (stop.tv_nsec - start.tv_nsec));
+    state.SetIterationTime(stop_s - start_s);
   }
 }
 BENCHMARK(BM_BinomialSmoothVga)->Unit(benchmark::kMicrosecond)->UseManualTime();

@@ -46,6 +46,12 @@ void spoil(Primitive& p) {
   for (int j = 0; j < kPatchPixels; ++j) p.patch[j] = ((j % kPatchSize + j / kPatchSize) % 2) ? 20 : 230;
 }
 
+// The seed pixel (plane_config's 4 px stride: cell centres at 4 k + 2) nearest to a projection: the estimate of
+// a primitive projects within half a stride of the seed it was created from.
+Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv) {
+  return {std::round((uv.x() - 2.0) / 4.0) * 4.0 + 2.0, std::round((uv.y() - 2.0) / 4.0) * 4.0 + 2.0};
+}
+
 // Within 2 units of the plane's centre: in view, with room for the search, from every view below.
 bool near_centre(const Primitive& p) { return std::abs(p.X_world.y()) <= 2.0 && std::abs(p.X_world.z()) <= 2.0; }
 
@@ -521,7 +527,7 @@ void make_well_estimated(const Scene& scene, const Viewpoint& first, std::uint32
     Primitive& p = g_pool[i];
     Eigen::Vector2d uv;
     REQUIRE(ok(project(p.X_world, first, scene.k, &uv)));
-    const Eigen::Vector2d seed(std::round((uv.x() - 2.0) / 4.0) * 4.0 + 2.0, std::round((uv.y() - 2.0) / 4.0) * 4.0 + 2.0);
+    const Eigen::Vector2d seed = nearest_seed_px(uv);
     REQUIRE(scene.plane.intersect(seed, first, scene.k, &p.X_world));
     p.X_world.x() += offset(seed);
     p.Sigma_world = Eigen::Matrix3d::Identity() * 1e-4;
@@ -733,11 +739,11 @@ TEST_CASE("presmooth: templates come from the low-passed frames, tracking still 
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
     if (!g_pool.is_alive(i) || g_pool[i].creating_view != 0u) continue;
     const Primitive& p = g_pool[i];
-    // The seed is where the creating view saw it: the estimate projects within half a stride of it.
     Eigen::Vector2d uv;
     REQUIRE(ok(project(p.X_world, first, scene.k, &uv)));
-    const int sx = static_cast<int>(std::round((uv.x() - 2.0) / 4.0) * 4.0 + 2.0);
-    const int sy = static_cast<int>(std::round((uv.y() - 2.0) / 4.0) * 4.0 + 2.0);
+    const Eigen::Vector2d seed = nearest_seed_px(uv);
+    const int sx = static_cast<int>(seed.x());
+    const int sy = static_cast<int>(seed.y());
     bool same_smoothed = true;
     bool same_raw = true;
     for (int j = 0; j < kPatchPixels; ++j) {
