@@ -191,6 +191,20 @@ void BM_FrontEndTrack20kVgaFullSearch(benchmark::State& state) {
 }
 BENCHMARK(BM_FrontEndTrack20kVgaFullSearch)->Unit(benchmark::kMillisecond)->UseManualTime();
 
+// The same with every measurement-model term the consistency work added switched off: no photometric
+// normal, no normal uncertainty in R (no warp covariance), no reference-patch noise (no consider terms),
+// one EKF iteration. What the matcher and a plain EKF cost, i.e. how far configuration alone can bring
+// the frame toward its 10 ms budget (core/frontend/README.md, "The model terms' share").
+void BM_FrontEndTrack20kVgaPlainModel(benchmark::State& state) {
+  vantage::FrontEndConfig config;
+  config.photometric_normal = false;
+  config.model_normal_uncertainty = false;
+  config.model_template_noise = false;
+  config.ekf_iterations = 1;
+  track_with(state, config);
+}
+BENCHMARK(BM_FrontEndTrack20kVgaPlainModel)->Unit(benchmark::kMillisecond)->UseManualTime();
+
 // A whole frame: the same tracking plus model augmentation (epipolar search of the seeds no primitive
 // covers against the previous image, 1.5 degrees away). The front end is re-initialized and the pool
 // refilled, untimed, before each update so the previous image is the second one every time.
