@@ -21,8 +21,7 @@ run_preset() {
 run_preset debug
 # Release runs only the guards (the suites run in Debug, ASan and aarch64), so it builds what ships and
 # what the guards read, not the suites.
-run_preset release --target vantage-sim vantage-bench vantage-onboard vantage_core \
-  vantage_guard_allocating_probe guard_alloc_counter_probe -- -R '^guard_'
+run_preset release --target vantage_executables vantage_guard_inputs -- -R '^guard_'
 run_preset asan
 run_preset aarch64
 echo "=== all configurations passed"
