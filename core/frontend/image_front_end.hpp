@@ -45,7 +45,7 @@ struct FrontEndConfig {
   // matcher resamples a band-limited image: seeds, templates and matches all see the smoothed frame. Off
   // by default: the matches are no more accurate with it while their fit covariances shrink, so the filter
   // gets more over-confident (the missions' gate diagnostics; the consistency test's bunny NEES triples at
-  // 320x240) (README, "Pre-smoothing").
+  // 320x240) (EXPERIMENTS.md, "Pre-smoothing").
   bool presmooth = false;
   // Seeds: one candidate pixel per seed_stride_px x seed_stride_px cell, if its patch has contrast.
   std::int32_t seed_stride_px = 4;
@@ -58,7 +58,7 @@ struct FrontEndConfig {
   std::int32_t max_search_half_window_px = 12;
   // A primitive whose prior 3-sigma ellipse (H Sigma H^T's largest semi-axis) lies within this many pixels
   // of its prediction is matched by the subpixel fit from the prediction, the window searched only when
-  // that fit fails (patch_search.hpp, WindowQuery::direct_fit; README.md, "Seventh round"). 0: always
+  // that fit fails (patch_search.hpp, WindowQuery::direct_fit; EXPERIMENTS.md, "Seventh round"). 0: always
   // search.
   double direct_fit_max_px = 1.0;
   // Gauss-Newton steps of the photometric subpixel refinement after the parabola fit (0: parabola only).
@@ -96,7 +96,7 @@ struct FrontEndConfig {
   // matched unwarped, i.e. as if the surface faced the reference camera, so the facing prior's tilt
   // variance displaces that match too; it is added to the match's R before triangulating. Off: it makes a
   // new primitive's first re-observation consistent whatever the spawn baseline, but the sim mission got
-  // worse with it (README, "Why the mission gates").
+  // worse with it (EXPERIMENTS.md, "Why the mission gates").
   bool model_spawn_normal_uncertainty = false;
   // Photometric normal (core/frontend/photometric_normal.hpp): a matched primitive whose normal's tilt
   // variance exceeds photometric_normal_min_tilt_variance, and whose warp covariance (the normal's
@@ -164,7 +164,7 @@ struct FrontEndConfig {
   double merge_max_normal_angle_deg = 10.0;
   double merge_plane_sigmas = 3.0;
   double merge_max_radius_px = 8.0;
-  // Confirmation by parallax (README, "Confirmation by parallax"): a new primitive is provisional
+  // Confirmation by parallax (EXPERIMENTS.md, "Confirmation by parallax"): a new primitive is provisional
   // (primitive_flags::kProvisional) until an accepted match has constrained its depth: its update
   // divided the variance along the seed ray (the direction a wrong spawn match moves the point) by at
   // least 1 + confirm_min_depth_information, i.e. that view's match carried at least this fraction of

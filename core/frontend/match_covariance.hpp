@@ -2,7 +2,7 @@
 // The covariance of a subpixel match (the photometric fit I(p + d) = alpha * t + beta of
 // patch_search.hpp's refine_subpixel) with the residuals' spatial correlation taken into account
 // (correlated_residuals.hpp): the fit taken as white is optimistic, by about 2.8 on average in the
-// front end's matches (core/frontend/README.md).
+// front end's matches (core/frontend/EXPERIMENTS.md).
 #include <Eigen/Core>
 
 #include "core/frontend/ncc.hpp"

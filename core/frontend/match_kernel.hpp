@@ -1,5 +1,5 @@
 #pragma once
-// The matcher's inner loops, internal to core/frontend (see README.md, "Speed"): the box NCC, the
+// The matcher's inner loops, internal to core/frontend (see EXPERIMENTS.md, "Speed"): the box NCC, the
 // photometric subpixel fit and the photometric normal's pass over its patch. Written once (match_kernel_impl.hpp) with GCC/Clang vector extensions and
 // built twice, as core/criterion does: for the baseline ISA (match_kernel.cpp: SSE2 on x86-64, NEON on
 // aarch64) and, on x86-64 only, with AVX2 + FMA (match_kernel_avx2.cpp), chosen at run time. This header

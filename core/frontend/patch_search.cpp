@@ -76,7 +76,7 @@ bool refine_with(const GrayImageView& image, const NccTemplate& tmpl, std::int32
 // subpixel_stop_step_px within subpixel_iterations) within a pixel of the prediction's nearest pixel and
 // its NCC there reaches ncc_min. False, outputs untouched, otherwise (the caller then searches the window).
 // No uniqueness test: inside a region smaller than the texture's correlation length the NCC surface has
-// one lobe, and a second peak a full lobe away lies outside what the prior allows (README.md, "Speed").
+// one lobe, and a second peak a full lobe away lies outside what the prior allows (EXPERIMENTS.md, "Speed").
 bool fit_from_prediction(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& predicted_px,
                          const MatchConfig& config, const match_kernel::Functions& kernels, Eigen::Vector2d* uv_px,
                          float* best_ncc, Eigen::Matrix2d* covariance_px2) {

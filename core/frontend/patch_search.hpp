@@ -57,7 +57,7 @@ struct WindowQuery {
   double gate_chi2 = 9.0;
   std::int32_t half_width_px = 2;
   std::int32_t half_height_px = 2;
-  // The caller's prior puts the feature within about a pixel of predicted_px (README.md, "Speed"): the
+  // The caller's prior puts the feature within about a pixel of predicted_px (EXPERIMENTS.md, "Speed"): the
   // photometric fit runs from the prediction first and is taken when it converges and its NCC reaches
   // ncc_min (*best_ncc is then that NCC, of the subpixel-aligned patch); otherwise the window is searched
   // as without it.

@@ -33,7 +33,7 @@ struct PhotometricNormalQuery {
   // Also stop when the step's squared length in the information metric (its Newton decrement, in
   // squared posterior standard deviations) is below this: the rest of the way is well inside the
   // estimate's own uncertainty. 0: only the step-length rule. On at 1e-2 (5.7 -> 3.8 passes per estimate):
-  // over eleven missions coverage was level and avg sigma lower (core/frontend/README.md, tenth round).
+  // over eleven missions coverage was level and avg sigma lower (core/frontend/EXPERIMENTS.md, tenth round).
   double stop_decrement = 1e-2;
   // A primitive faces a camera when cos(normal, direction to the camera) exceeds this; the estimate
   // must face both views.

@@ -5,7 +5,7 @@
 // ray caster's) aliased edges and fine texture shift the subpixel fit by an amount that depends on the
 // texture's phase, which the fit's residual does not show. Blurring both frames the same way removes most
 // of that energy. (Measured in the simulator, the front end's matches did not get more accurate:
-// core/frontend/README.md, "Pre-smoothing".)
+// core/frontend/EXPERIMENTS.md, "Pre-smoothing".)
 #include "core/common/status.hpp"
 #include "core/image/gray_image.hpp"
 

@@ -25,7 +25,7 @@ inline constexpr std::uint16_t kLostTrack = 1u << 1;    // last search failed
 inline constexpr std::uint16_t kUnconsumed = 1u << 2;
 // A new primitive whose depth no view has constrained yet: it rests on its two-view spawn match, and the
 // matches accepted since came from views where a wrong depth would not have shown (nearly collinear with
-// its seed ray). Set and cleared by the measurement source (core/frontend/README.md, "Confirmation by
+// its seed ray). Set and cleared by the measurement source (core/frontend/EXPERIMENTS.md, "Confirmation by
 // parallax"); the criterion and the planner still count it, accuracy figures and exports tell it apart.
 inline constexpr std::uint16_t kProvisional = 1u << 3;
 }  // namespace primitive_flags

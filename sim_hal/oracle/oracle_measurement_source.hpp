@@ -39,7 +39,7 @@ struct OracleConfig {
   double gate_chi2 = kChiSquare2Dof95;
   // Iterations of the measurement update (core/frontend/iterated_update.hpp); 1 is the plain EKF. The
   // first updates after a small-baseline start linearize far from the truth along depth: relinearizing
-  // keeps the covariance honest (README of core/frontend, "Measured").
+  // keeps the covariance honest (EXPERIMENTS.md of core/frontend, "Measured").
   int ekf_iterations = 1;
   std::size_t site_count = 70000;       // candidate primitive sites on the surface
   double image_margin_px = kPatchSize / 2 + 1;

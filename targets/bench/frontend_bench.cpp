@@ -183,7 +183,7 @@ void BM_FrontEndTrack20kVga(benchmark::State& state) { track_with(state, vantage
 BENCHMARK(BM_FrontEndTrack20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
 
 // The same with the window always searched (FrontEndConfig::direct_fit_max_px = 0; by default a prior
-// within a pixel is fitted from its prediction: core/frontend/README.md, "Seventh round").
+// within a pixel is fitted from its prediction: core/frontend/EXPERIMENTS.md, "Seventh round").
 void BM_FrontEndTrack20kVgaFullSearch(benchmark::State& state) {
   vantage::FrontEndConfig config;
   config.direct_fit_max_px = 0.0;
@@ -194,7 +194,7 @@ BENCHMARK(BM_FrontEndTrack20kVgaFullSearch)->Unit(benchmark::kMillisecond)->UseM
 // The same with every measurement-model term the consistency work added switched off: no photometric
 // normal, no normal uncertainty in R (no warp covariance), no reference-patch noise (no consider terms),
 // one EKF iteration. What the matcher and a plain EKF cost, i.e. how far configuration alone can bring
-// the frame toward its 10 ms budget (core/frontend/README.md, "The model terms' share").
+// the frame toward its 10 ms budget (core/frontend/EXPERIMENTS.md, "The model terms' share").
 void BM_FrontEndTrack20kVgaPlainModel(benchmark::State& state) {
   vantage::FrontEndConfig config;
   config.photometric_normal = false;

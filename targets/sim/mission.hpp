@@ -43,7 +43,7 @@ struct MissionOptions {
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = 1.0;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and
-  // provisional_max_updates (0: keep them flagged). core/frontend/README.md, "Confirmation by parallax".
+  // provisional_max_updates (0: keep them flagged). core/frontend/EXPERIMENTS.md, "Confirmation by parallax".
   double confirm_depth_information = 1.0;
   std::uint32_t provisional_max_updates = 0;
   bool erase_provisional_rejected = false;  // FrontEndConfig::erase_provisional_rejected
