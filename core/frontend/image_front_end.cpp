@@ -151,15 +151,14 @@ __attribute__((target("avx2"))) void facing_and_pulled_lanes4(const Primitive* c
 // inline: two or three calls per match, a handful of operations each.
 inline Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_covariance_px2) const {
   if (!config_.adaptive_R || !fit_covariance_px2.allFinite()) return config_.ekf.R_px2;
-  const double floor = config_.match_sigma_floor_px * config_.match_sigma_floor_px;
-  return fit_covariance_px2 + floor * Eigen::Matrix2d::Identity();
+  return fit_covariance_px2 + match_floor_px2_;
 }
 
 Status FrontEndConfig::validate() const {
   const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, uniqueness_ratio, depth_min, depth_max,
                            max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
-                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_px,
+                           merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information};
   for (double v : values) {
@@ -187,7 +186,9 @@ Status FrontEndConfig::validate() const {
   if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
     return Status::kInvalidArgument;
   }
-  if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_px)) return Status::kInvalidArgument;
+  if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_rad) || !(match_sigma_floor_rad < 0.01)) {
+    return Status::kInvalidArgument;
+  }
   if (!(facing_normal_tilt_variance >= 0.0) || !(photometric_normal_min_tilt_variance >= 0.0)) {
     return Status::kInvalidArgument;
   }
@@ -211,6 +212,9 @@ Status ImageFrontEnd::configure(const PinholeIntrinsics& intrinsics, const Front
   if (!ok(c_status)) return c_status;
   intrinsics_ = intrinsics;
   config_ = config;
+  const double floor_x_px = config.match_sigma_floor_rad * intrinsics.fx_px;
+  const double floor_y_px = config.match_sigma_floor_rad * intrinsics.fy_px;
+  match_floor_px2_ << floor_x_px * floor_x_px, 0.0, 0.0, floor_y_px * floor_y_px;
   stats_ = FrontEndStats{};
   next_view_index_ = 0;
   cells_x_ = intrinsics.width_px / config.seed_stride_px;
@@ -958,8 +962,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
   TwoViewObservation observation;
   observation.view_a = reference_view;
   observation.view_b = other_view;
-  const double floor = config_.match_sigma_floor_px * config_.match_sigma_floor_px;
-  observation.R_a_px2 = config_.adaptive_R ? Eigen::Matrix2d(floor * Eigen::Matrix2d::Identity()) : config_.ekf.R_px2;
+  observation.R_a_px2 = config_.adaptive_R ? match_floor_px2_ : config_.ekf.R_px2;
   observation.R_b_px2 = config_.ekf.R_px2;
   bool pool_full = false;
   for (std::int32_t cy = 0; cy < cells_y_ && !pool_full; ++cy) {

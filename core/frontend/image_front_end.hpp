@@ -71,13 +71,18 @@ struct FrontEndConfig {
   // search windows; it is also each match's R when adaptive_R is off.
   EkfConfig ekf;
   // adaptive_R: each match's R is the least-squares covariance of its photometric subpixel fit (residual
-  // variance times the shift block of (J^T J)^-1) plus match_sigma_floor_px^2 I for what the fit does not
+  // variance times the shift block of (J^T J)^-1) plus the floor's covariance for what the fit does not
   // see (interpolation, warp and lattice effects). The seed pixel of a new primitive defines the point it
   // stands for, so its own observation gets the floor alone.
   bool adaptive_R = true;
   // Iterations of the iterated EKF update (core/frontend/iterated_update.hpp); 1 is the plain EKF.
   int ekf_iterations = 5;
-  double match_sigma_floor_px = 0.05;
+  // The floor's standard deviation as an angle (rad): per axis it is this times the focal length in
+  // pixels, so every resolution of a camera gets the same floor (0.098 px at the paper's 640x480 camera,
+  // fy 579 px; 0.049 px at 320x240). The error it covers scales with the scene in the image, not with the
+  // pixel: the plane's per-match NEES read 0.85 at 320x240 and 1.59 at 640x480 with one 0.05 px floor, and
+  // 1.00 at 640x480 with this one (EXPERIMENTS.md, "The match floor as an angle (session 12)").
+  double match_sigma_floor_rad = 1.7e-4;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
   // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
   // test it made the plane more conservative (NEES 2.66 -> 2.26) and let a wrong match on the bunny pass
@@ -379,6 +384,8 @@ class ImageFrontEnd final : public MeasurementSource {
 
   PinholeIntrinsics intrinsics_;
   FrontEndConfig config_;
+  // The match floor's covariance in pixels (px^2), from match_sigma_floor_rad and the focal lengths.
+  Eigen::Matrix2d match_floor_px2_ = Eigen::Matrix2d::Zero();
   FrontEndStats stats_;
   bool configured_ = false;
   bool initialized_ = false;

@@ -81,9 +81,14 @@ int run_cli(int argc, const char* const* argv) {
                "(default: erase it so its region is spawned again)");
   app.add_flag("--presmooth", options.presmooth,
                "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
-  app.add_option("--match-floor-px", options.match_sigma_floor_px,
-                 "image front end: standard deviation (px) added to every match's own (default 0.05)")
-      ->check(CLI::Range(0.001, 2.0));
+  app.add_option("--match-floor-rad", options.match_sigma_floor_rad,
+                 "image front end: standard deviation added to every match's own, as an angle (rad; times the "
+                 "focal length in px per axis: 1.7e-4 is 0.098 px at the paper's 640x480 camera)")
+      ->check(CLI::Range(1e-6, 9e-3))
+      ->capture_default_str();
+  // The floor was a fixed pixel figure until session 12: an old script gets told what replaced it.
+  double retired_floor_px = 0.0;
+  CLI::Option* retired_floor = app.add_option("--match-floor-px", retired_floor_px)->group("");
   app.add_option("--direct-fit-px", options.direct_fit_max_px,
                  "image front end: match a primitive whose prior 3-sigma ellipse is within this many pixels by the "
                  "subpixel fit from its prediction, searching only if that fails (default 1; 0: always search)")
@@ -112,6 +117,11 @@ int run_cli(int argc, const char* const* argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 1;
+  }
+  if (retired_floor->count() > 0) {
+    std::cerr << "vantage-sim: --match-floor-px was replaced by --match-floor-rad, the floor as an angle "
+                 "(RAD = PX / the focal length in px; 0.05 px at the 640x480 camera is 8.6e-5)\n";
+    return 1;
   }
   options.live = !quiet;
   options.measurement = measurement == "oracle" ? MeasurementKind::kOracle : MeasurementKind::kImage;

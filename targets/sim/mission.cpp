@@ -213,7 +213,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.erase_unsearchable = !options.keep_unsearchable;
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.presmooth = options.presmooth;
-    fc.match_sigma_floor_px = options.match_sigma_floor_px;
+    fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;
     fc.erase_provisional_rejected = options.erase_provisional_rejected;

@@ -5,6 +5,7 @@
 #include <memory>
 #include <string>
 
+#include "core/frontend/image_front_end.hpp"
 #include "core/planning/planner_policy.hpp"
 #include "sim_hal/ground_truth/ground_truth.hpp"
 #include "sim_hal/scene/scene_config.hpp"
@@ -37,9 +38,9 @@ struct MissionOptions {
   // Image front end: keep unconsumed primitives the search window cannot cover (FrontEndConfig::erase_unsearchable).
   bool keep_unsearchable = false;
   // Image front end: FrontEndConfig::presmooth (the 3x3 binomial low-pass of every frame) and
-  // match_sigma_floor_px (px added in quadrature to every match's standard deviation).
+  // match_sigma_floor_rad (the floor added in quadrature to every match's standard deviation, as an angle).
   bool presmooth = false;
-  double match_sigma_floor_px = 0.05;
+  double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = 1.0;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -682,6 +683,70 @@ TEST_CASE("the track observer is shown every observation that reaches the EKF up
   CHECK(observer.updated + observer.gated + observer.other == report.matched);
   // The prior is the state before the update (merges may have erased a few since; those count as unmoved).
   CHECK(observer.moved > 0.9 * observer.updated);
+}
+
+namespace {
+
+// Sums the diagonal of every accepted update's independent R (no allocation: plain sums).
+struct RDiagonalObserver final : TrackObserver {
+  std::uint32_t updated = 0;
+  double sum_x = 0.0;
+  double sum_y = 0.0;
+  double min_x = 1e300;
+  double min_y = 1e300;
+  void on_observation(const TrackedObservation& o) override {
+    if (!ok(o.outcome)) return;
+    ++updated;
+    sum_x += o.R_px2(0, 0);
+    sum_y += o.R_px2(1, 1);
+    min_x = std::min(min_x, o.R_px2(0, 0));
+    min_y = std::min(min_y, o.R_px2(1, 1));
+  }
+};
+
+}  // namespace
+
+TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_rad times each focal length, squared") {
+  Scene scene;
+  scene.k.fx_px = 1.25 * scene.k.fy_px;  // non-square pixels: the floor follows each axis's focal length
+  const Viewpoint third = third_view();
+  const auto c = scene.render(third);
+  auto observe = [&](double floor_rad) {
+    FrontEndConfig config = plane_config();
+    config.match_sigma_floor_rad = floor_rad;
+    initialize_on_plane(scene, first_view(), second_view(), config);
+    RDiagonalObserver observer;
+    g_front_end.set_observer(&observer);
+    update_from(c, scene.k, third);
+    g_front_end.set_observer(nullptr);
+    REQUIRE(observer.updated > 100u);
+    return observer;
+  };
+  const double floor_rad = 4e-3;  // 0.72 / 0.58 px here: far above the fit's own few hundredths of a pixel
+  const double floor_x2 = std::pow(floor_rad * scene.k.fx_px, 2);
+  const double floor_y2 = std::pow(floor_rad * scene.k.fy_px, 2);
+  const RDiagonalObserver wide = observe(floor_rad);
+  CHECK(wide.min_x >= floor_x2);
+  CHECK(wide.min_y >= floor_y2);
+  // The floor dominates R, so the axes' mean variances stand as the focal lengths squared (1.5625).
+  const double ratio = wide.sum_x / wide.sum_y;
+  CHECK(ratio > 1.4);
+  CHECK(ratio < 1.6);
+  // The default floor (1.7e-4 rad, 0.025 px here) leaves R to the fit.
+  const RDiagonalObserver narrow = observe(FrontEndConfig{}.match_sigma_floor_rad);
+  CHECK(narrow.sum_x / narrow.updated < 0.1 * floor_x2);
+}
+
+TEST_CASE("configure refuses a match floor that is not a small positive angle") {
+  for (double floor_rad : {0.0, -1e-4, 0.01, 0.5}) {
+    FrontEndConfig bad;
+    bad.match_sigma_floor_rad = floor_rad;
+    CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  }
+  FrontEndConfig bad;
+  bad.match_sigma_floor_rad = std::nan("");
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  CHECK_FALSE(g_front_end.configured());
 }
 
 TEST_CASE("spawn normal uncertainty: a new primitive's covariance also holds the unknown normal's share of its match") {

@@ -397,7 +397,7 @@ TEST_CASE("the vectorized subpixel fit reproduces the plain double-precision fit
 // The tracker's EKF weighs each match by the fit's covariance, so it must describe the real spread: over
 // many noisy patches the mean of e^T C^-1 e should be near 2 (2 dof). Measured: the fit is optimistic by
 // a factor 1.2 (4 gray levels of noise) to 1.8 (1 gray level), the bilinear resampling's model error that
-// the residual does not show; the front end adds match_sigma_floor_px for it. The check holds the fit to
+// the residual does not show; the front end adds a floor (match_sigma_floor_rad) for it. The check holds the fit to
 // that: never pessimistic, never more than twice optimistic.
 TEST_CASE("the subpixel fit's covariance follows the empirical error spread under pixel noise") {
   const std::int32_t w = 96;
