@@ -81,7 +81,7 @@ struct FrontEndConfig {
   // pixels, so every resolution of a camera gets the same floor (0.098 px at the paper's 640x480 camera,
   // fy 579 px; 0.049 px at 320x240). The error it covers scales with the scene in the image, not with the
   // pixel: the plane's per-match NEES read 0.85 at 320x240 and 1.59 at 640x480 with one 0.05 px floor, and
-  // 1.00 at 640x480 with this one (EXPERIMENTS.md, "The match floor as an angle (session 12)").
+  // 1.02 at 640x480 with this one (EXPERIMENTS.md, "The match floor as an angle (session 12)").
   double match_sigma_floor_rad = 1.7e-4;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
   // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
