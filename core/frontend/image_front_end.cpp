@@ -178,6 +178,7 @@ Status FrontEndConfig::validate() const {
   if (max_search_half_window_px < 1 || max_search_half_window_px > kFrontEndMaxHalfWindow) {
     return Status::kInvalidArgument;
   }
+  if (normal_fit_ring_cells < 1 || normal_fit_ring_cells > kFrontEndMaxNormalFitRing) return Status::kInvalidArgument;
   if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!(confirm_min_depth_information >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
@@ -828,8 +829,8 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
 void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma,
                                double max_distance, const Eigen::Vector3d& camera_world, PrimitivePoolView& pool) {
   Primitive& p = pool[i];
-  std::array<Eigen::Vector3d, 8> neighbours;
-  std::array<Eigen::Matrix3d, 8> sigmas;
+  std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours> neighbours;
+  std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours> sigmas;
   const std::size_t used = neighbour_positions(cx, cy, pool, max_sigma, &neighbours, &sigmas);
   PlaneFitConfig fit;
   fit.max_neighbour_distance = max_distance;
@@ -874,11 +875,13 @@ void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance) 
 }
 
 std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool,
-                                               double max_sigma, std::array<Eigen::Vector3d, 8>* out,
-                                               std::array<Eigen::Matrix3d, 8>* sigmas) const {
+                                               double max_sigma,
+                                               std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours>* out,
+                                               std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours>* sigmas) const {
   std::size_t count = 0;
-  for (std::int32_t dy = -1; dy <= 1; ++dy) {
-    for (std::int32_t dx = -1; dx <= 1; ++dx) {
+  const std::int32_t ring = config_.normal_fit_ring_cells;  // validated: 1..kFrontEndMaxNormalFitRing
+  for (std::int32_t dy = -ring; dy <= ring; ++dy) {
+    for (std::int32_t dx = -ring; dx <= ring; ++dx) {
       const std::int32_t nx = cx + dx;
       const std::int32_t ny = cy + dy;
       if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= cells_x_ || ny >= cells_y_) continue;

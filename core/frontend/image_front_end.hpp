@@ -39,6 +39,10 @@ inline constexpr std::int32_t kFrontEndMaxHalfWindow = 24;
 inline constexpr std::size_t kFrontEndMaxEpipolarSamples = 2048;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
+// A normal's local plane fit reads the cells within this many of its own (FrontEndConfig::normal_fit_ring_cells).
+inline constexpr std::int32_t kFrontEndMaxNormalFitRing = 2;
+inline constexpr std::size_t kFrontEndMaxNormalFitNeighbours =
+    static_cast<std::size_t>((2 * kFrontEndMaxNormalFitRing + 1) * (2 * kFrontEndMaxNormalFitRing + 1) - 1);
 
 struct FrontEndConfig {
   // Low-pass every frame before anything reads it (core/image/binomial_smooth.hpp, 3x3 binomial), so the
@@ -159,6 +163,12 @@ struct FrontEndConfig {
   SaliencyParams saliency;
   // Normal refit from well-estimated neighbours when a primitive reaches n, 2n, 4n and 8n EKF updates.
   std::uint32_t normal_refit_observations = 3;
+  // The neighbours a normal's local plane fit reads (at spawn and at each refit): the nearest primitive of
+  // every cell within this many cells, 1..kFrontEndMaxNormalFitRing (2: the 5 x 5 cells around, 24
+  // neighbours). 1 (the 8 adjacent cells) left a third of the bunny's tracked primitives at 640x480 with
+  // normals more than 20 degrees off, and they held half its NEES excess (EXPERIMENTS.md, "The normal fit's
+  // neighbourhood (session 12)").
+  std::int32_t normal_fit_ring_cells = 2;
   // Adaptive scale (see README): neighbours in the image merge when both have at least
   // merge_min_observations updates and sqrt(trace Sigma) <= merge_max_sigma, normals within
   // merge_max_normal_angle_deg, the other's centre within merge_plane_sigmas standard deviations of the
@@ -359,8 +369,8 @@ class ImageFrontEnd final : public MeasurementSource {
   // max_sigma only those whose sigma bound is below it. Returns how many were written to *out.
   // Their covariances go to *sigmas when it is not null.
   std::size_t neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool, double max_sigma,
-                                  std::array<Eigen::Vector3d, 8>* out,
-                                  std::array<Eigen::Matrix3d, 8>* sigmas = nullptr) const;
+                                  std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours>* out,
+                                  std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours>* sigmas = nullptr) const;
   // Refits primitive i's normal from the neighbours of cell (cx, cy); keeps the fit when its tilt variance
   // is below the current one. The camera orients the normal.
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,

@@ -560,9 +560,11 @@ TEST_CASE("front end NEES on the bunny lies in the 95% chi-square band", "[!shou
 }
 
 // The same band at the missions' 640x480 (four times the primitives; hidden: `integration_tests "[vga]"`,
-// 3 s in Release, too slow for the Debug and ASan suites). KNOWN TO FAIL, further from the band than at
-// 320x240 (core/frontend/EXPERIMENTS.md, "At the missions' resolution").
-TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga][!shouldfail]") {
+// 3 s in Release, too slow for the Debug and ASan suites). The plane has met it since session 12 (the
+// match floor as an angle, the normal fit over the 5 x 5 cells: all 2.957 in [2.943, 3.057], tracked 3.001
+// in [2.934, 3.067]), so that check guards it; the bunny's is KNOWN TO FAIL (core/frontend/EXPERIMENTS.md,
+// "At the missions' resolution", "The normal fit's neighbourhood (session 12)").
+TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga]") {
   check_plane_nees_in_band(plane_run(Resolution::kVga));
 }
 
