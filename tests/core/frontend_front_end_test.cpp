@@ -741,8 +741,8 @@ TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_
 }
 
 TEST_CASE("the normal fit over the 5 x 5 cells around a primitive finds the plane's normal closer than over the 3 x 3") {
-  // Photometric normals off, so the refit at 3 updates (the plane fit of the neighbours) sets the normals;
-  // the same primitives either way (initialization and tracking are deterministic up to the refits).
+  // Photometric normals off, so the plane fit of the neighbours sets the normals (at spawn and at the
+  // refit after 3 updates); merging off, so every tracked primitive counts.
   Scene scene;
   const Viewpoint views[] = {vantage::test::looking_at_origin({39.5, -2.0, 3.0}),
                              vantage::test::looking_at_origin({39.0, -4.0, 6.0}), third_view()};
