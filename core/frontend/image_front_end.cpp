@@ -200,6 +200,14 @@ Status FrontEndConfig::validate() const {
   return Status::kOk;
 }
 
+Eigen::Matrix2d FrontEndConfig::match_floor_px2(const PinholeIntrinsics& intrinsics) const {
+  const double floor_x_px = match_sigma_floor_rad * intrinsics.fx_px;
+  const double floor_y_px = match_sigma_floor_rad * intrinsics.fy_px;
+  Eigen::Matrix2d covariance;
+  covariance << floor_x_px * floor_x_px, 0.0, 0.0, floor_y_px * floor_y_px;
+  return covariance;
+}
+
 Status ImageFrontEnd::configure(const PinholeIntrinsics& intrinsics, const FrontEndConfig& config) {
   configured_ = false;
   initialized_ = false;
@@ -213,9 +221,7 @@ Status ImageFrontEnd::configure(const PinholeIntrinsics& intrinsics, const Front
   if (!ok(c_status)) return c_status;
   intrinsics_ = intrinsics;
   config_ = config;
-  const double floor_x_px = config.match_sigma_floor_rad * intrinsics.fx_px;
-  const double floor_y_px = config.match_sigma_floor_rad * intrinsics.fy_px;
-  match_floor_px2_ << floor_x_px * floor_x_px, 0.0, 0.0, floor_y_px * floor_y_px;
+  match_floor_px2_ = config.match_floor_px2(intrinsics);
   stats_ = FrontEndStats{};
   next_view_index_ = 0;
   cells_x_ = intrinsics.width_px / config.seed_stride_px;

@@ -201,6 +201,9 @@ struct FrontEndConfig {
 
   // kOk, kNonFiniteInput or kInvalidArgument naming no field (see the README for the ranges).
   Status validate() const;
+  // The match floor's covariance in pixels (px^2): match_sigma_floor_rad times each axis's focal length,
+  // squared, on the diagonal.
+  Eigen::Matrix2d match_floor_px2(const PinholeIntrinsics& intrinsics) const;
 };
 
 // Cumulative counters over the front end's life.
@@ -394,7 +397,7 @@ class ImageFrontEnd final : public MeasurementSource {
 
   PinholeIntrinsics intrinsics_;
   FrontEndConfig config_;
-  // The match floor's covariance in pixels (px^2), from match_sigma_floor_rad and the focal lengths.
+  // config_.match_floor_px2(intrinsics_), formed once at configure(): it enters every match's R.
   Eigen::Matrix2d match_floor_px2_ = Eigen::Matrix2d::Zero();
   FrontEndStats stats_;
   bool configured_ = false;

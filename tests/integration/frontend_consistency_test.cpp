@@ -85,7 +85,8 @@ class Samples {
       : surface_distance_(std::move(surface_distance)) {}
 
   // seed_ray_world: the unit direction of the seed's ray, to split the NEES along it (nullptr: no split).
-  void add(const Primitive& p, const Eigen::Vector3d& truth, const Eigen::Vector3d* seed_ray_world = nullptr) {
+  // Returns the primitive's NEES.
+  double add(const Primitive& p, const Eigen::Vector3d& truth, const Eigen::Vector3d* seed_ray_world = nullptr) {
     const Eigen::Vector3d e = p.X_world - truth;
     nees_.push_back(e.dot(p.Sigma_world.ldlt().solve(e)));
     if (seed_ray_world != nullptr) {
@@ -100,6 +101,7 @@ class Samples {
     const double d = surface_distance_(p.X_world);
     sum_sq_surface_ += d * d;
     sum_sigma_ += std::sqrt(p.Sigma_world.trace() / 3.0);
+    return nees_.back();
   }
 
   Figures summarize(double matched, double predicted) const {
@@ -224,11 +226,10 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
 // One line per gross failure (NEES > kGrossNees), to tell their kinds apart: a seed patch across a depth
 // edge that followed the other layer (the patch's depths span far more than the surface's slope gives),
 // a wrong epipolar match (X far from the surface), a spawn of the last views that no update has checked.
-void print_if_gross(const Scene& scene, const Primitive& p, const Eigen::Vector3d& truth,
+void print_if_gross(const Scene& scene, const Primitive& p, double nees, const Eigen::Vector3d& truth,
                     const Eigen::Vector2d& seed, const Eigen::Vector3d& seed_ray, const Viewpoint& creating) {
-  const Eigen::Vector3d e = p.X_world - truth;
-  const double nees = e.dot(p.Sigma_world.ldlt().solve(e));
   if (!(nees > kGrossNees)) return;
+  const Eigen::Vector3d e = p.X_world - truth;
   double depth_min = std::numeric_limits<double>::infinity();
   double depth_max = -depth_min;
   for (int dy = -kPatchRadius; dy <= kPatchRadius; ++dy) {
@@ -272,8 +273,8 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
     Eigen::Vector3d truth;
     const Eigen::Vector3d seed_ray = back_project_ray_world(seed, creating, k);
     if (!scene.true_point(seed, creating, &truth)) continue;
-    samples.add(p, truth, &seed_ray);
-    if (min_updates == 0 && provisional < 0) print_if_gross(scene, p, truth, seed, seed_ray, creating);
+    const double nees = samples.add(p, truth, &seed_ray);
+    if (min_updates == 0 && provisional < 0) print_if_gross(scene, p, nees, truth, seed, seed_ray, creating);
   }
   return samples.summarize(matched, predicted);
 }
@@ -323,9 +324,7 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
   MutableGrayImageView vb{b.data(), k.width_px, k.height_px, k.width_px};
   REQUIRE(ok(camera.render(scene.views[0], va, nullptr, 0)));
   REQUIRE(ok(camera.render(scene.views[j], vb, nullptr, j)));
-  const double floor_x_px = config.match_sigma_floor_rad * k.fx_px;
-  const double floor_y_px = config.match_sigma_floor_rad * k.fy_px;
-  const Eigen::Matrix2d floor_px2 = Eigen::Vector2d(floor_x_px * floor_x_px, floor_y_px * floor_y_px).asDiagonal();
+  const Eigen::Matrix2d floor_px2 = config.match_floor_px2(k);
   constexpr double kChi2Dof2Q99 = 9.210340371976184;
   double sums[4] = {0.0, 0.0, 0.0, 0.0};  // white, white + floor, correlated, correlated + floor
   double tails[4] = {0.0, 0.0, 0.0, 0.0};
@@ -364,8 +363,7 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
         continue;
       }
       const Eigen::Vector2d e = found - truth;
-      const Eigen::Matrix2d covariances[4] = {white, white + floor_px2, correlated,
-                                              correlated + floor_px2};
+      const Eigen::Matrix2d covariances[4] = {white, white + floor_px2, correlated, correlated + floor_px2};
       for (int m = 0; m < 4; ++m) {
         const double nees = e.dot(covariances[m].inverse() * e);
         sums[m] += nees / 2.0;
