@@ -36,18 +36,18 @@ struct MissionOptions {
   // gated); 0: off. core/planning/README.md, "Why coverage stalls".
   std::uint32_t unconsumed_after = 3;
   // Image front end: keep unconsumed primitives the search window cannot cover (FrontEndConfig::erase_unsearchable).
-  bool keep_unsearchable = false;
+  bool keep_unsearchable = !FrontEndConfig{}.erase_unsearchable;
   // Image front end: FrontEndConfig::presmooth (the 3x3 binomial low-pass of every frame) and
   // match_sigma_floor_rad (the floor added in quadrature to every match's standard deviation, as an angle).
-  bool presmooth = false;
+  bool presmooth = FrontEndConfig{}.presmooth;
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
-  double direct_fit_max_px = 1.0;
+  double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and
   // provisional_max_updates (0: keep them flagged). core/frontend/EXPERIMENTS.md, "Confirmation by parallax".
-  double confirm_depth_information = 1.0;
-  std::uint32_t provisional_max_updates = 0;
-  bool erase_provisional_rejected = false;  // FrontEndConfig::erase_provisional_rejected
+  double confirm_depth_information = FrontEndConfig{}.confirm_min_depth_information;
+  std::uint32_t provisional_max_updates = FrontEndConfig{}.provisional_max_updates;
+  bool erase_provisional_rejected = FrontEndConfig{}.erase_provisional_rejected;
   std::uint32_t coverage_every = 10;   // progress line: ground-truth coverage every N images
   std::size_t oracle_sites = 70000;
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
