@@ -427,6 +427,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       continue;
     }
     ++report.predicted_in_view;
+    ++stats_.tracks_predicted;
 
     // Coverage: the footprint's disc in this image, and the nearest primitive per cell.
     const double depth = (R_cam_world * (p.X_world - view.position_world)).z();
@@ -474,6 +475,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       // the prediction batch.
       if (!ok(ahead.creating_status[slot]) || !ok(ahead.plane_status[slot])) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
+        ++stats_.track_failures.edge_on;
         reject_observation(i, centre_cell, pool, report);
         continue;
       }
@@ -512,6 +514,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
+      count_track_failure(tmpl.valid_count >= kPatchPixels / 2, outcome);
       reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
     }
@@ -530,6 +533,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
     ++report.matched;
+    ++stats_.tracks_matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
     // Only a primitive whose patch noise was recorded at its creation splits the fit covariance.
@@ -741,6 +745,21 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
     erase_tracked(i, centre_cell, pool, report, &stats_.provisional_erased);
   }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
+}
+
+void ImageFrontEnd::count_track_failure(bool template_usable, MatchOutcome outcome) {
+  TrackFailureCounts& f = stats_.track_failures;
+  if (!template_usable) {
+    ++f.template_masked;  // the window was not searched
+    return;
+  }
+  switch (outcome) {
+    case MatchOutcome::kBelowThreshold: ++f.below_threshold; break;
+    case MatchOutcome::kAmbiguous: ++f.ambiguous; break;
+    case MatchOutcome::kNoSubpixel: ++f.no_subpixel; break;
+    case MatchOutcome::kNoRoom: ++f.no_room; break;
+    case MatchOutcome::kMatched: break;  // not a failure: never passed
+  }
 }
 
 void ImageFrontEnd::drop_unconfirmed(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool) {

@@ -206,6 +206,23 @@ struct FrontEndConfig {
   Eigen::Matrix2d match_floor_px2(const PinholeIntrinsics& intrinsics) const;
 };
 
+// Why tracked observations failed, one count per failed observation (each also counts in its frame's
+// UpdateReport::failed_matches). template_masked: the plane map stretches the 7 x 7 template so far that
+// fewer than half its pixels sample the stored reference patch, which happens when the view differs much
+// from the creating view, and more often when the normal is wrong (EXPERIMENTS.md, "Why tracked matches fail").
+struct TrackFailureCounts {
+  std::uint64_t edge_on = 0;          // the plane map cannot be formed: the plane is seen edge-on
+  std::uint64_t template_masked = 0;  // fewer than half the warped template's pixels inside the reference patch
+  std::uint64_t below_threshold = 0;  // MatchOutcome::kBelowThreshold: no NCC peak at ncc_min
+  std::uint64_t ambiguous = 0;        // MatchOutcome::kAmbiguous: a second peak within uniqueness_ratio
+  std::uint64_t no_room = 0;          // MatchOutcome::kNoRoom: the search left the image
+  std::uint64_t no_subpixel = 0;      // MatchOutcome::kNoSubpixel: the photometric fit did not converge
+
+  std::uint64_t total() const {
+    return edge_on + template_masked + below_threshold + ambiguous + no_room + no_subpixel;
+  }
+};
+
 // Cumulative counters over the front end's life.
 struct FrontEndStats {
   std::uint64_t frames_accepted = 0;
@@ -221,6 +238,9 @@ struct FrontEndStats {
   std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable
   std::uint64_t parallax_confirmed = 0;       // provisional primitives confirmed (confirm_min_depth_information)
   std::uint64_t provisional_erased = 0;       // FrontEndConfig::provisional_max_updates, erase_provisional_rejected
+  std::uint64_t tracks_predicted = 0;         // tracked primitives predicted in view and not occluded
+  std::uint64_t tracks_matched = 0;           // of which matched (the EKF may still gate them: ekf)
+  TrackFailureCounts track_failures;          // the others, by reason (tracks_predicted = matched + failures)
   EkfStats ekf;
 };
 
@@ -349,6 +369,9 @@ class ImageFrontEnd final : public MeasurementSource {
   // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
   // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
   // beyond_search: the prediction's 3-sigma ellipse was wider than the capped search window.
+  // One failed tracked observation into FrontEndStats::track_failures: the template had too few pixels
+  // inside the reference patch to search (template_usable false), or the search's outcome.
+  void count_track_failure(bool template_usable, MatchOutcome outcome);
   void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
                           bool beyond_search = false);
   // Counts one failed or gated observation of primitive i; flags it kUnconsumed at

@@ -8,6 +8,7 @@
 #include "core/frontend/image_front_end.hpp"
 #include "core/planning/sensing_executive.hpp"
 #include "targets/common/search_depth_range.hpp"
+#include "targets/common/tracking_summary.hpp"
 #include "targets/onboard/onboard_grid.hpp"
 
 namespace vantage::onboard {
@@ -245,6 +246,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
     *summary = e.text;
     return e.code;
   }
+  const FrontEndStats& tracked = g_front_end.stats();
+  std::printf("%s\n", targets::tracking_summary(tracked.tracks_predicted, tracked.tracks_matched, tracked.track_failures).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {
     *summary = std::string("mission done: ") + to_string(last.done) + ", " + std::to_string(g_executive.images()) +

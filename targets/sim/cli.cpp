@@ -12,6 +12,7 @@
 #include "core/planning/planner_policy.hpp"
 #include "sim_hal/scene/scene_config.hpp"
 #include "sim_hal/sim_error.hpp"
+#include "targets/common/tracking_summary.hpp"
 #include "targets/sim/mission.hpp"
 #include "targets/sim/report.hpp"
 
@@ -180,6 +181,9 @@ int run_cli(int argc, const char* const* argv) {
                 << "; never observed " << summary.provisional_unobserved << ", rms " << summary.accuracy_rms_unobserved
                 << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "; > 1 unit off "
                 << summary.gross << " (provisional " << summary.gross_provisional << ")\n";
+      if (summary.measurement == to_string(MeasurementKind::kImage)) {
+        std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched, summary.track_failures) << "\n";
+      }
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
         std::string error;

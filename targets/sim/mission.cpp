@@ -381,6 +381,12 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.measurement_seconds = g_measurement.seconds;
   summary.render_seconds = rig.render_seconds;
   summary.rejected_images = g_executive.rejected_images();
+  if (options.measurement == MeasurementKind::kImage) {
+    const FrontEndStats& fs = g_front_end.stats();
+    summary.tracks_predicted = fs.tracks_predicted;
+    summary.tracks_matched = fs.tracks_matched;
+    summary.track_failures = fs.track_failures;
+  }
   summary.unreachable_nbv = g_executive.unreachable_nbv_count();
   summary.split_fallbacks = g_executive.split_fallback_count();
   summary.stagnations = g_executive.stagnation_count();

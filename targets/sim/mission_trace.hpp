@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/frontend/image_front_end.hpp"
 #include "core/grid/grid_geometry.hpp"
 #include "core/planning/sensing_executive.hpp"
 
@@ -78,6 +79,11 @@ struct MissionSummary {
   double sigma_target = 0.008;
   std::uint32_t budget = 0;
   std::uint64_t seed = 0;
+  // The image front end's tracked observations (zero with the oracle): predicted in view, matched, and
+  // why the others failed (FrontEndStats).
+  std::uint64_t tracks_predicted = 0;
+  std::uint64_t tracks_matched = 0;
+  TrackFailureCounts track_failures;
 };
 
 }  // namespace vantage::simtarget

@@ -258,7 +258,13 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"coverage_target\": " << s.coverage_target << ",\n"
       << "  \"sigma_target\": " << s.sigma_target << ",\n"
       << "  \"budget\": " << s.budget << ",\n"
-      << "  \"seed\": " << s.seed << "\n"
+      << "  \"seed\": " << s.seed << ",\n"
+      << "  \"tracks_predicted\": " << s.tracks_predicted << ",\n"
+      << "  \"tracks_matched\": " << s.tracks_matched << ",\n"
+      << "  \"track_failures\": {\"template_masked\": " << s.track_failures.template_masked
+      << ", \"below_threshold\": " << s.track_failures.below_threshold << ", \"ambiguous\": " << s.track_failures.ambiguous
+      << ", \"no_subpixel\": " << s.track_failures.no_subpixel << ", \"no_room\": " << s.track_failures.no_room
+      << ", \"edge_on\": " << s.track_failures.edge_on << "}\n"
       << "}\n";
   return out.str();
 }

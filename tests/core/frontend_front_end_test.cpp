@@ -138,6 +138,65 @@ TEST_CASE("tracking a third view matches most visible primitives and shrinks the
   CHECK(std::sqrt(sum_sq / updated) < 2.0);
 }
 
+namespace {
+
+// What FrontEndStats counts of one update: predicted, matched and failed tracked observations.
+struct TrackCounts {
+  std::uint64_t predicted = 0;
+  std::uint64_t matched = 0;
+  TrackFailureCounts failed;
+};
+TrackCounts track_counts_since(const TrackCounts& before) {
+  const FrontEndStats& s = g_front_end.stats();
+  TrackCounts d;
+  d.predicted = s.tracks_predicted - before.predicted;
+  d.matched = s.tracks_matched - before.matched;
+  const TrackFailureCounts& f = s.track_failures;
+  d.failed.edge_on = f.edge_on - before.failed.edge_on;
+  d.failed.template_masked = f.template_masked - before.failed.template_masked;
+  d.failed.below_threshold = f.below_threshold - before.failed.below_threshold;
+  d.failed.ambiguous = f.ambiguous - before.failed.ambiguous;
+  d.failed.no_room = f.no_room - before.failed.no_room;
+  d.failed.no_subpixel = f.no_subpixel - before.failed.no_subpixel;
+  return d;
+}
+TrackCounts track_counts_now() { return track_counts_since(TrackCounts{}); }
+
+}  // namespace
+
+TEST_CASE("tracking failures are counted by reason: a grazing view masks the warped templates, a wrong patch finds no peak") {
+  Scene scene;
+  initialize_on_plane(scene, first_view(), second_view());
+  // A near-frontal third view, where a few primitives carry a patch the image does not show.
+  std::vector<PrimitiveIndex> spoiled;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound() && spoiled.size() < 8; ++i) {
+    if (!g_pool.is_alive(i) || !near_centre(g_pool[i])) continue;
+    spoil(g_pool[i]);
+    g_pool[i].observation_count = 1;  // confirmed: a failure keeps it
+    spoiled.push_back(i);
+  }
+  REQUIRE(spoiled.size() == 8);
+  TrackCounts before = track_counts_now();
+  const Viewpoint near_frontal = vantage::test::looking_at_origin({39.8, 3.0, 0.5});
+  UpdateReport report = update_from(scene.render(near_frontal), scene.k, near_frontal);
+  TrackCounts d = track_counts_since(before);
+  CHECK(d.predicted == report.predicted_in_view);
+  CHECK(d.matched == report.matched);
+  CHECK(d.failed.total() == report.failed_matches);
+  CHECK(d.matched + d.failed.total() == d.predicted);
+  CHECK(d.failed.below_threshold >= spoiled.size());
+  CHECK(d.failed.template_masked == 0u);
+  // 70 degrees off the plane's normal: the plane map stretches every template about threefold across.
+  before = track_counts_now();
+  const Viewpoint grazing = vantage::test::looking_at_origin({13.7, 37.6, 0.0});
+  report = update_from(scene.render(grazing), scene.k, grazing);
+  d = track_counts_since(before);
+  REQUIRE(d.predicted > 100u);
+  CHECK(d.matched + d.failed.total() == d.predicted);
+  CHECK(d.failed.template_masked >= 0.8 * d.predicted);
+  CHECK(d.failed.total() == report.failed_matches);
+}
+
 TEST_CASE("a new primitive whose first re-observation fails is erased, a confirmed one only loses track") {
   Scene scene;
   const Viewpoint first = first_view();

@@ -95,3 +95,36 @@ TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing
   o.split_epsilon_cells = 2.0;                        // --epsilon overrides
   CHECK(split_epsilon_for(o, 2.0) == Approx(2.0));
 }
+
+namespace {
+
+// The unsigned number after "key": in a summary.json text; -1 when the key is missing.
+long long json_count(const std::string& json, const std::string& key) {
+  const std::string tag = "\"" + key + "\": ";
+  const std::size_t at = json.find(tag);
+  if (at == std::string::npos) return -1;
+  return std::stoll(json.substr(at + tag.size()));
+}
+
+}  // namespace
+
+TEST_CASE("vantage-sim: an image mission reports its tracked observations, every failure by its reason") {
+  const fs::path out = fresh_dir("tracking");
+  // The default scene (the small one's 160 x 120 camera gives the image front end no seeds): the initial
+  // pair and one tracked image.
+  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--out", out.string()}) == 2);
+  const std::string summary = read(out / "summary.json");
+  const long long predicted = json_count(summary, "tracks_predicted");
+  const long long matched = json_count(summary, "tracks_matched");
+  long long failed = 0;
+  for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on"}) {
+    INFO(reason);
+    const long long n = json_count(summary, reason);
+    CHECK(n >= 0);
+    failed += n;
+  }
+  CHECK(predicted > 1000);
+  CHECK(matched > predicted / 2);
+  CHECK(matched + failed == predicted);
+  fs::remove_all(out);
+}

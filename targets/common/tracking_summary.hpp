@@ -1,0 +1,13 @@
+#pragma once
+// One log line on the image front end's tracked observations, for the targets' end-of-mission output.
+#include <string>
+
+#include "core/frontend/image_front_end.hpp"
+
+namespace vantage::targets {
+
+// "tracking: N observations predicted in view, x% matched; failed: template masked by the warp y%, ..."
+// (no newline); every share is of the predicted count. "tracking: no observation predicted in view" for 0.
+std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, const TrackFailureCounts& failures);
+
+}  // namespace vantage::targets
