@@ -53,6 +53,9 @@ seeds=$(sed -n 's/.*front end: \([0-9]*\) seeds tried.*/\1/p' "$work/onboard.out
 # ... and the two-view initialization built a model from them.
 initial=$(sed -n 's/^mission: started from .*: \([0-9]*\) primitives.*/\1/p' "$work/onboard.out")
 [ "${initial:-0}" -gt 100 ] || fail "the initial two images gave ${initial:-no} primitives"
+# ... and the tracked images matched the model's primitives (the end-of-mission tracking line).
+tracked=$(sed -n 's/^tracking: \([0-9]*\) observations predicted in view.*/\1/p' "$work/onboard.out")
+[ "${tracked:-0}" -gt 1000 ] || fail "the tracked images predicted ${tracked:-no} observations in view"
 captured=$(grep -c '^image ' "$work/onboard.out" || true)
 [ "$captured" -ge $((images - 2)) ] || fail "only $captured images after the initial two"
 grep -q '"msg":"SET_POSITION_TARGET_LOCAL_NED"' "$peer_out" || fail "the peer saw no setpoint"
