@@ -512,6 +512,13 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       query.direct_fit = 9.0 * largest <= config_.direct_fit_max_px * config_.direct_fit_max_px;
       outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
     }
+    // A template the warp masked: the image warped instead (inverse_warp_masked).
+    const bool inverse_warped = tmpl.valid_count < kPatchPixels / 2 && config_.inverse_warp_masked && have_creating &&
+                                match_by_inverse_warp(i, image, creating, view, predicted, pool, &observed, &fit_covariance);
+    if (inverse_warped) {
+      outcome = MatchOutcome::kMatched;
+      ++stats_.tracks_inverse_warped;
+    }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
       count_track_failure(tmpl.valid_count >= kPatchPixels / 2, outcome);
@@ -520,18 +527,19 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig); only a match uses it.
     Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
-    if (config_.model_normal_uncertainty && have_creating) {
+    // (An inverse-warp match's covariance holds the normal's share already.)
+    if (config_.model_normal_uncertainty && have_creating && !inverse_warped) {
       warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
     }
     // A poorly known normal that matters here (its warp covariance outweighs the match's own): estimate it
     // from this view's appearance, then match with its warp.
-    if (config_.photometric_normal && have_creating &&
+    if (config_.photometric_normal && have_creating && !inverse_warped &&
         normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance &&
         warp_covariance.trace() > measurement_R(fit_covariance).trace()) {
       (void)refine_normal_photometric(i, image, creating, view, H_creating, H, pool, &tmpl, &B, &warp_covariance,
                                       &observed, &fit_covariance);
     }
-    correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
+    if (!inverse_warped) correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
     ++report.matched;
     ++stats_.tracks_matched;
     EkfConfig ekf = config_.ekf;
@@ -725,6 +733,41 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
   *warp_covariance = warp;
   *observed = uv;
   *fit_covariance = covariance;
+  return true;
+}
+
+bool ImageFrontEnd::match_by_inverse_warp(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
+                                          const Viewpoint& view, const Eigen::Vector2d& predicted,
+                                          PrimitivePoolView& pool, Eigen::Vector2d* observed,
+                                          Eigen::Matrix2d* covariance_px2) {
+  Primitive& p = pool[i];
+  PhotometricNormalQuery query;
+  query.X_world = p.X_world;
+  query.normal_world = p.normal_world;
+  query.prior_tilt_variance = normal_tilt_variance(i);
+  query.reference = creating;
+  query.target = view;
+  query.uv_target_px = predicted;  // the fit starts there and may move 1.5 px: a prior known that well
+  query.min_facing_cos = config_.min_facing_cos;
+  if (!(query.prior_tilt_variance > 0.0)) return false;
+  PhotometricNormalEstimate estimate;
+  if (!ok(estimate_photometric_normal(image, p.patch, query, intrinsics_, &estimate))) return false;
+  // The NCC threshold in the fit's terms: NCC^2 = signal / (signal + residual variance), the signal the
+  // gain times the reference patch's variance.
+  NccTemplate reference;
+  make_template(p.patch, &reference);
+  const double signal = estimate.gain * estimate.gain * reference.stddev_gray * reference.stddev_gray;
+  const double ncc_min = config_.ncc_min;
+  if (!(estimate.gain > 0.0) || !(estimate.residual_variance_gray2 * ncc_min * ncc_min <= signal * (1.0 - ncc_min * ncc_min)) ||
+      !estimate.shift_covariance_px2.allFinite()) {
+    return false;
+  }
+  if (estimate.tilt_variance < normal_tilt_variance(i)) {
+    p.normal_world = estimate.normal_world;
+    set_normal_tilt_variance(i, estimate.tilt_variance);
+  }
+  *observed = estimate.uv_target_px;
+  *covariance_px2 = estimate.shift_covariance_px2;
   return true;
 }
 

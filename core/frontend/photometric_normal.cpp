@@ -182,15 +182,15 @@ double residual_variance(const NormalEquations& eq) {
   return step->allFinite() ? Status::kOk : Status::kNotSpd;
 }
 
-// The tilt's posterior covariance at the solution whose normal equations are eq. The residuals of a
+// The tilt's and the shift's posterior covariances at the solution whose normal equations are eq. The residuals of a
 // resampled patch are not white (bilinear interpolation mixes neighbouring pixels' noise; the
 // interpolation's model error is smooth): the pixels' information is that of a correlated field,
 // H M^-1 H / sigma^2 with M = J^T C J (sandwich form), C from the residuals' own lag-one correlations.
 // White residuals give M = H. Its own function (not inlined): the 6x6 factorizations would otherwise
 // share one stack frame with the iteration's, beyond the core's frame limit under ASan.
-[[gnu::noinline]] Status tilt_covariance_of(const NormalEquations& eq, const std::array<std::uint8_t, kPatchPixels>& patch,
+[[gnu::noinline]] Status posterior_covariances(const NormalEquations& eq, const std::array<std::uint8_t, kPatchPixels>& patch,
                                             double prior_information, MatchKernel kernel,
-                                            Eigen::Matrix2d* tilt_covariance) {
+                                            Eigen::Matrix2d* tilt_covariance, Eigen::Matrix2d* shift_covariance) {
   const double sigma2 = residual_variance(eq);
   double rho_x = 0.0;
   double rho_y = 0.0;
@@ -201,11 +201,16 @@ double residual_variance(const NormalEquations& eq) {
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
-  // Only the tilt block of the inverse: the columns of the two tilt parameters.
+  // Only the tilt and shift blocks of the inverse: the columns of those four parameters.
   Eigen::Matrix<double, kParams, 2> tilt_columns;
-  if (!solve_spd<2>(information, Matrix6d::Identity().middleCols<2>(2), &tilt_columns)) return Status::kNotSpd;
-  if (!tilt_columns.allFinite()) return Status::kNotSpd;
+  Eigen::Matrix<double, kParams, 2> shift_columns;
+  if (!solve_spd<2>(information, Matrix6d::Identity().middleCols<2>(2), &tilt_columns) ||
+      !solve_spd<2>(information, Matrix6d::Identity().leftCols<2>(), &shift_columns)) {
+    return Status::kNotSpd;
+  }
+  if (!tilt_columns.allFinite() || !shift_columns.allFinite()) return Status::kNotSpd;
   *tilt_covariance = 0.5 * (tilt_columns.middleRows<2>(2) + tilt_columns.middleRows<2>(2).transpose());
+  *shift_covariance = 0.5 * (shift_columns.topRows<2>() + shift_columns.topRows<2>().transpose());
   return Status::kOk;
 }
 
@@ -386,7 +391,9 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
     if ((theta.head<2>() - query.uv_target_px).norm() > 1.5) return Status::kOutsideImage;
   }
   Eigen::Matrix2d tilt_covariance;
-  const Status covariance_status = tilt_covariance_of(eq, patch, prior_information, query.kernel, &tilt_covariance);
+  Eigen::Matrix2d shift_covariance;
+  const Status covariance_status =
+      posterior_covariances(eq, patch, prior_information, query.kernel, &tilt_covariance, &shift_covariance);
   if (!ok(covariance_status)) return covariance_status;
   // Eigenvalues of the symmetric 2x2 in closed form (Eigen's solver references the heap here).
   const double half_trace = 0.5 * (tilt_covariance(0, 0) + tilt_covariance(1, 1));
@@ -398,7 +405,9 @@ Status estimate_photometric_normal(const GrayImageView& image, const std::array<
   estimate->tilt_covariance = tilt_covariance;
   estimate->tilt_variance = largest;
   estimate->uv_target_px = theta.head<2>();
+  estimate->gain = theta(4);
   estimate->residual_variance_gray2 = eq.count > kParams ? eq.sum_r2 / (eq.count - kParams) : 0.0;
+  estimate->shift_covariance_px2 = shift_covariance;
   return Status::kOk;
 }
 

@@ -48,7 +48,11 @@ struct PhotometricNormalEstimate {
   Eigen::Matrix2d tilt_covariance = Eigen::Matrix2d::Zero();
   double tilt_variance = 0.0;
   Eigen::Vector2d uv_target_px = Eigen::Vector2d::Zero();  // u at the solution
+  double gain = 1.0;                                       // alpha at the solution
   double residual_variance_gray2 = 0.0;
+  // Posterior covariance of u (px^2): the shift block of the same sandwich form as tilt_covariance, so
+  // the tilt, gain and offset are marginalized (the normal's uncertainty is in it).
+  Eigen::Matrix2d shift_covariance_px2 = Eigen::Matrix2d::Zero();
 };
 
 // kInvalidArgument for a non-unit normal, a non-positive prior variance or iterations outside [1, 20];

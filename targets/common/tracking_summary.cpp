@@ -4,15 +4,18 @@
 
 namespace vantage::targets {
 
-std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, const TrackFailureCounts& failures) {
+std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std::uint64_t inverse_warped,
+                             const TrackFailureCounts& failures) {
   if (predicted == 0) return "tracking: no observation predicted in view";
   const double share = 100.0 / static_cast<double>(predicted);
+  char inverse[64] = "";
+  if (inverse_warped > 0) std::snprintf(inverse, sizeof inverse, " (%.1f%% by the inverse warp)", share * inverse_warped);
   char line[512];
   std::snprintf(line, sizeof line,
-                "tracking: %llu observations predicted in view, %.1f%% matched; failed: template masked by the warp "
-                "%.1f%%, below the NCC threshold %.1f%%, ambiguous %.1f%%, no subpixel fit %.1f%%, no room %.1f%%, "
-                "edge-on %.1f%%",
-                static_cast<unsigned long long>(predicted), share * matched, share * failures.template_masked,
+                "tracking: %llu observations predicted in view, %.1f%% matched%s; failed: template masked by the "
+                "warp %.1f%%, below the NCC threshold %.1f%%, ambiguous %.1f%%, no subpixel fit %.1f%%, no room "
+                "%.1f%%, edge-on %.1f%%",
+                static_cast<unsigned long long>(predicted), share * matched, inverse, share * failures.template_masked,
                 share * failures.below_threshold, share * failures.ambiguous, share * failures.no_subpixel,
                 share * failures.no_room, share * failures.edge_on);
   return line;

@@ -7,7 +7,9 @@
 namespace vantage::targets {
 
 // "tracking: N observations predicted in view, x% matched; failed: template masked by the warp y%, ..."
-// (no newline); every share is of the predicted count. "tracking: no observation predicted in view" for 0.
-std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, const TrackFailureCounts& failures);
+// (no newline); every share is of the predicted count; with inverse-warp matches, "x% matched (z% by the
+// inverse warp)". "tracking: no observation predicted in view" for 0.
+std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std::uint64_t inverse_warped,
+                             const TrackFailureCounts& failures);
 
 }  // namespace vantage::targets

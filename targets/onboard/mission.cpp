@@ -247,7 +247,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
     return e.code;
   }
   const FrontEndStats& tracked = g_front_end.stats();
-  std::printf("%s\n", targets::tracking_summary(tracked.tracks_predicted, tracked.tracks_matched, tracked.track_failures).c_str());
+  std::printf("%s\n", targets::tracking_summary(tracked.tracks_predicted, tracked.tracks_matched,
+                                                       tracked.tracks_inverse_warped, tracked.track_failures).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {
     *summary = std::string("mission done: ") + to_string(last.done) + ", " + std::to_string(g_executive.images()) +

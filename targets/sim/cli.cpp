@@ -80,6 +80,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--keep-unsearchable", options.keep_unsearchable,
                "image front end: keep an unconsumed primitive whose 3-sigma ellipse exceeds the search window "
                "(default: erase it so its region is spawned again)");
+  app.add_flag("--inverse-warp-masked", options.inverse_warp_masked,
+               "image front end: match a primitive whose warped template would be masked by warping the image "
+               "instead (default off: more coverage, less consistent estimates; core/frontend/EXPERIMENTS.md)");
   app.add_flag("--presmooth", options.presmooth,
                "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
   app.add_option("--match-floor-rad", options.match_sigma_floor_rad,
@@ -182,7 +185,8 @@ int run_cli(int argc, const char* const* argv) {
                 << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "; > 1 unit off "
                 << summary.gross << " (provisional " << summary.gross_provisional << ")\n";
       if (summary.measurement == to_string(MeasurementKind::kImage)) {
-        std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched, summary.track_failures) << "\n";
+        std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched,
+                                                   summary.tracks_inverse_warped, summary.track_failures) << "\n";
       }
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;

@@ -213,6 +213,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.erase_unsearchable = !options.keep_unsearchable;
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.presmooth = options.presmooth;
+    fc.inverse_warp_masked = options.inverse_warp_masked;
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;
@@ -385,6 +386,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     const FrontEndStats& fs = g_front_end.stats();
     summary.tracks_predicted = fs.tracks_predicted;
     summary.tracks_matched = fs.tracks_matched;
+    summary.tracks_inverse_warped = fs.tracks_inverse_warped;
     summary.track_failures = fs.track_failures;
   }
   summary.unreachable_nbv = g_executive.unreachable_nbv_count();

@@ -40,6 +40,8 @@ struct MissionOptions {
   // Image front end: FrontEndConfig::presmooth (the 3x3 binomial low-pass of every frame) and
   // match_sigma_floor_rad (the floor added in quadrature to every match's standard deviation, as an angle).
   bool presmooth = FrontEndConfig{}.presmooth;
+  // Image front end: FrontEndConfig::inverse_warp_masked (masked templates matched by warping the image).
+  bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;

@@ -83,6 +83,7 @@ struct MissionSummary {
   // why the others failed (FrontEndStats).
   std::uint64_t tracks_predicted = 0;
   std::uint64_t tracks_matched = 0;
+  std::uint64_t tracks_inverse_warped = 0;  // of the matched: by the inverse warp (--inverse-warp-masked)
   TrackFailureCounts track_failures;
 };
 

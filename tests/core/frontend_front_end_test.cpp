@@ -197,6 +197,60 @@ TEST_CASE("tracking failures are counted by reason: a grazing view masks the war
   CHECK(d.failed.total() == report.failed_matches);
 }
 
+namespace {
+
+// Initialize on the plane, track the third view, then a view 55 degrees off the plane's normal; the
+// tracking counts of that last view and the primitives' RMS error off the plane in their sigmas.
+struct ObliqueRun {
+  TrackCounts counts;
+  std::uint64_t inverse_warped = 0;
+  double rms_plane_error_sigmas = 0.0;
+};
+ObliqueRun track_oblique_view(bool inverse_warp_masked) {
+  Scene scene;
+  FrontEndConfig config = plane_config();
+  config.inverse_warp_masked = inverse_warp_masked;
+  initialize_on_plane(scene, first_view(), second_view(), config);
+  (void)update_from(scene.render(third_view()), scene.k, third_view());
+  const std::uint64_t inverse_before = g_front_end.stats().tracks_inverse_warped;
+  const TrackCounts before = track_counts_now();
+  const Viewpoint oblique = vantage::test::looking_at_origin({22.9, 32.8, 0.0});
+  (void)update_from(scene.render(oblique), scene.k, oblique);
+  ObliqueRun run;
+  run.counts = track_counts_since(before);
+  run.inverse_warped = g_front_end.stats().tracks_inverse_warped - inverse_before;
+  double sum_sq = 0.0;
+  int count = 0;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i) || g_pool[i].observation_count < 2) continue;
+    sum_sq += normalized_plane_error(g_pool[i]) * normalized_plane_error(g_pool[i]);
+    ++count;
+  }
+  REQUIRE(count > 100);
+  run.rms_plane_error_sigmas = std::sqrt(sum_sq / count);
+  return run;
+}
+
+}  // namespace
+
+TEST_CASE("inverse_warp_masked: an oblique view's masked templates are matched by warping the image instead") {
+  const ObliqueRun off = track_oblique_view(false);
+  const ObliqueRun on = track_oblique_view(true);
+  REQUIRE(off.counts.predicted > 100u);
+  CHECK(off.inverse_warped == 0u);
+  // Off, a third of these observations fail because the warp masks their templates.
+  const std::uint64_t masked_off = off.counts.failed.template_masked;
+  CHECK(masked_off >= 0.3 * off.counts.predicted);
+  // On, about half of those are matched by the inverse warp (here 156 of 292), and the estimates stay on
+  // the plane.
+  CHECK(on.counts.matched + on.counts.failed.total() == on.counts.predicted);
+  CHECK(on.inverse_warped >= 0.4 * masked_off);
+  CHECK(on.counts.failed.template_masked <= 0.6 * masked_off);
+  CHECK(on.counts.matched >= off.counts.matched + 0.3 * masked_off);
+  CHECK(off.rms_plane_error_sigmas < 2.0);
+  CHECK(on.rms_plane_error_sigmas < 2.0);
+}
+
 TEST_CASE("a new primitive whose first re-observation fails is erased, a confirmed one only loses track") {
   Scene scene;
   const Viewpoint first = first_view();

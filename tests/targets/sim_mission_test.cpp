@@ -116,6 +116,7 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   const std::string summary = read(out / "summary.json");
   const long long predicted = json_count(summary, "tracks_predicted");
   const long long matched = json_count(summary, "tracks_matched");
+  CHECK(json_count(summary, "tracks_inverse_warped") == 0);  // off by default
   long long failed = 0;
   for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on"}) {
     INFO(reason);
