@@ -199,8 +199,9 @@ TEST_CASE("tracking failures are counted by reason: a grazing view masks the war
 
 namespace {
 
-// Initialize on the plane, track the third view, then a view 55 degrees off the plane's normal; the
-// tracking counts of that last view and the primitives' RMS error off the plane in their sigmas.
+// Initialize on the plane, track the third view, then a view 55 degrees off the plane's normal (without
+// allocating); the tracking counts of that last view and the primitives' RMS error off the plane in their
+// sigmas.
 struct ObliqueRun {
   TrackCounts counts;
   std::uint64_t inverse_warped = 0;
@@ -215,7 +216,11 @@ ObliqueRun track_oblique_view(bool inverse_warp_masked) {
   const std::uint64_t inverse_before = g_front_end.stats().tracks_inverse_warped;
   const TrackCounts before = track_counts_now();
   const Viewpoint oblique = vantage::test::looking_at_origin({22.9, 32.8, 0.0});
-  (void)update_from(scene.render(oblique), scene.k, oblique);
+  const auto image = scene.render(oblique);
+  UpdateReport report;
+  Status updated = Status::kOk;
+  REQUIRE_NO_ALLOCATION(updated = g_front_end.update(vantage::test::view_of(image, scene.k), oblique, g_pool, &report));
+  REQUIRE(ok(updated));
   ObliqueRun run;
   run.counts = track_counts_since(before);
   run.inverse_warped = g_front_end.stats().tracks_inverse_warped - inverse_before;
