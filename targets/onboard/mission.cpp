@@ -146,6 +146,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   const targets::SearchDepthRange derived = targets::default_search_depth_range(m.grid, m.viewing_distance_m);
   fc.depth_min = m.depth_min_m > 0.0 ? m.depth_min_m : derived.min_m;
   fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m : derived.max_m;
+  fc.inverse_warp_masked = m.inverse_warp_masked;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

@@ -66,6 +66,16 @@ class Section {
     if (v != std::floor(v)) throw Failure{field(key), "must be a whole number"};
     *out = static_cast<Int>(v);
   }
+  void boolean(const std::string& key, bool* out) const {
+    const YAML::Node n = get(key);
+    if (!n) return;
+    try {
+      if (!n.IsScalar()) throw YAML::Exception(YAML::Mark::null_mark(), "");
+      *out = n.as<bool>();
+    } catch (const YAML::Exception&) {
+      throw Failure{field(key), "must be true or false"};
+    }
+  }
   void vector(const std::string& key, double* out, std::size_t count) const {
     const YAML::Node n = get(key);
     if (!n) return;
@@ -179,7 +189,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     const Section mis(sections["mission"], "mission",
                       {"cells_per_side", "cell_size_m", "elevation_m", "center_xy", "viewing_distance_m",
                        "keep_out_radius_m", "max_images", "rho_sigma", "eta_utility", "split_epsilon_cells",
-                       "depth_min_m", "depth_max_m"});
+                       "depth_min_m", "depth_max_m", "inverse_warp_masked"});
     MissionSettings& s = c.mission;
     mis.integer("cells_per_side", &s.grid.cells_per_side, 1, 4096);
     if (s.grid.cells_per_side != kOnboardGridSide) {
@@ -197,6 +207,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.number("split_epsilon_cells", &s.split_epsilon_cells, 0.01, 100);
     mis.number("depth_min_m", &s.depth_min_m, 0, 1e5);
     mis.number("depth_max_m", &s.depth_max_m, 0, 1e6);
+    mis.boolean("inverse_warp_masked", &s.inverse_warp_masked);
     if (s.depth_min_m > 0.0 && s.depth_max_m > 0.0 && s.depth_max_m <= s.depth_min_m) {
       throw Failure{"mission.depth_max_m", "must be larger than depth_min_m"};
     }

@@ -3,6 +3,7 @@
 // field is reported as "<file>: <field>: <problem>" and nothing runs. See README.md for a full example.
 #include <string>
 
+#include "core/frontend/image_front_end.hpp"
 #include "core/grid/grid_geometry.hpp"
 #include "hal/mavlink/mavlink_motion.hpp"
 #include "hal/v4l2/gray_convert.hpp"
@@ -43,6 +44,9 @@ struct MissionSettings {
   double split_epsilon_cells = 0.75;
   double depth_min_m = 0.0;          // the front end's epipolar search range (camera z);
   double depth_max_m = 0.0;          // 0: targets::default_search_depth_range
+  // FrontEndConfig::inverse_warp_masked: masked templates matched by warping the image (more coverage,
+  // less consistent covariances; core/frontend/EXPERIMENTS.md).
+  bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
 };
 
 struct OnboardConfig {

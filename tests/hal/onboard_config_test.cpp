@@ -46,6 +46,7 @@ mission:
   viewing_distance_m: 10
   keep_out_radius_m: 3
   max_images: 120
+  inverse_warp_masked: true
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -64,6 +65,10 @@ mission:
   CHECK(c.mission.grid.center_xy == Eigen::Vector2d(4, 5));
   CHECK(c.mission.keep_out_radius_m == 3);
   CHECK(c.mission.max_images == 120u);
+  CHECK(c.mission.inverse_warp_masked);
+  OnboardConfig defaults;
+  REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
+  CHECK_FALSE(defaults.mission.inverse_warp_masked);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -87,6 +92,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  depth_min_m: 30\n  depth_max_m: 20\n") ==
         "onboard.yaml: mission.depth_max_m: must be larger than depth_min_m");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  depth_min_m: -1\n").find("onboard.yaml: mission.depth_min_m: ") == 0);
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_masked: sometimes\n") ==
+        "onboard.yaml: mission.inverse_warp_masked: must be true or false");
   CHECK(error_for("camera: [unclosed\n").find("onboard.yaml: line ") == 0);
   CHECK(error_for("robot: {}\n") == "onboard.yaml: robot: unknown section");
 }
