@@ -490,7 +490,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     Eigen::Vector2d observed = predicted;
     Eigen::Matrix2d fit_covariance = Eigen::Matrix2d::Zero();
     bool beyond_search = false;
-    if (tmpl.valid_count >= kPatchPixels / 2) {
+    // Fewer than half the template's pixels inside the reference patch: the window is not searched.
+    const bool template_usable = tmpl.valid_count >= kPatchPixels / 2;
+    if (template_usable) {
       const Eigen::Matrix2d prior = H * p.Sigma_world * H.transpose();
       const Eigen::Matrix2d S = prior + config_.ekf.R_px2;
       WindowQuery query;
@@ -513,7 +515,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
     }
     // A template the warp masked: the image warped instead (inverse_warp_masked).
-    const bool inverse_warped = tmpl.valid_count < kPatchPixels / 2 && config_.inverse_warp_masked && have_creating &&
+    const bool inverse_warped = !template_usable && config_.inverse_warp_masked && have_creating &&
                                 match_by_inverse_warp(i, image, creating, view, predicted, pool, &observed, &fit_covariance);
     if (inverse_warped) {
       outcome = MatchOutcome::kMatched;
@@ -521,7 +523,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
-      count_track_failure(tmpl.valid_count >= kPatchPixels / 2, outcome);
+      count_track_failure(template_usable, outcome);
       reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
     }

@@ -380,6 +380,8 @@ class ImageFrontEnd final : public MeasurementSource {
   // A predicted-in-view observation of primitive i that did not update it (seen edge-on, match failed, or
   // gated): flags kLostTrack, erases an unconfirmed new primitive (confirm_spawns), counts the rejection.
   // beyond_search: the prediction's 3-sigma ellipse was wider than the capped search window.
+  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
+                          bool beyond_search = false);
   // One failed tracked observation into FrontEndStats::track_failures: the template had too few pixels
   // inside the reference patch to search (template_usable false), or the search's outcome.
   void count_track_failure(bool template_usable, MatchOutcome outcome);
@@ -388,8 +390,6 @@ class ImageFrontEnd final : public MeasurementSource {
   bool match_by_inverse_warp(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
                              const Viewpoint& view, const Eigen::Vector2d& predicted, PrimitivePoolView& pool,
                              Eigen::Vector2d* observed, Eigen::Matrix2d* covariance_px2);
-  void reject_observation(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
-                          bool beyond_search = false);
   // Counts one failed or gated observation of primitive i; flags it kUnconsumed at
   // unconsumed_after_rejections, erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,
