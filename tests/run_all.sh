@@ -19,9 +19,9 @@ run_preset() {
 }
 
 run_preset debug
-# Release runs only the guards (the suites run in Debug, ASan and aarch64), so it builds what ships and
-# what the guards read, not the suites.
-run_preset release --target vantage_executables vantage_guard_inputs -- -R '^guard_'
+# Release runs the guards and the integration test's hidden cases (the suites run in Debug, ASan and
+# aarch64), so it builds what ships, what the guards read and integration_tests, not the other suites.
+run_preset release --target vantage_executables vantage_guard_inputs integration_tests -- -R '^guard_|^integration_hidden:'
 run_preset asan
 run_preset aarch64
 echo "=== all configurations passed"

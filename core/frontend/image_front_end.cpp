@@ -155,8 +155,8 @@ inline Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_c
 }
 
 Status FrontEndConfig::validate() const {
-  const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, uniqueness_ratio, depth_min, depth_max,
-                           max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
+  const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, inverse_warp_ncc_min, uniqueness_ratio,
+                           depth_min, depth_max, max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
                            max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
@@ -168,7 +168,7 @@ Status FrontEndConfig::validate() const {
   if (!ok(ekf_status)) return ekf_status;
   if (seed_stride_px < kFrontEndMinSeedStride || seed_stride_px > 64) return Status::kInvalidArgument;
   if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f) ||
-      !(spawn_ncc_min > 0.0f && spawn_ncc_min < 1.0f)) {
+      !(spawn_ncc_min > 0.0f && spawn_ncc_min < 1.0f) || !(inverse_warp_ncc_min > 0.0f && inverse_warp_ncc_min < 1.0f)) {
     return Status::kInvalidArgument;
   }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
@@ -516,7 +516,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     // A template the warp masked: the image warped instead (inverse_warp_masked).
     const bool inverse_warped = !template_usable && config_.inverse_warp_masked && have_creating &&
-                                match_by_inverse_warp(i, image, creating, view, predicted, pool, &observed, &fit_covariance);
+                                match_by_inverse_warp(i, image, creating, view, predicted, A, pool, &observed, &fit_covariance);
     if (inverse_warped) {
       outcome = MatchOutcome::kMatched;
       ++stats_.tracks_inverse_warped;
@@ -562,7 +562,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const Eigen::Matrix3d Sigma_prior = provisional ? p.Sigma_world : Eigen::Matrix3d::Zero();
     const Status updated =
         observer_ != nullptr
-            ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating)
+            ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating,
+                              inverse_warped)
             : iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
                                        ProjectionAtPrior{predicted, H}, &stats_.ekf);
     if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
@@ -583,7 +584,7 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
                                       const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
                                       const Eigen::Vector2d& observed, const EkfConfig& ekf,
                                       const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
-                                      const Viewpoint& view, const Viewpoint& creating) {
+                                      const Viewpoint& view, const Viewpoint& creating, bool inverse_warped) {
   TrackedObservation seen;
   seen.index = i;
   seen.prior = p;
@@ -596,6 +597,7 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
   seen.B = B;
   seen.view = view;
   seen.creating_view = creating;
+  seen.inverse_warped = inverse_warped;
   seen.outcome = iterated_consider_update(p, common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
                                           ProjectionAtPrior{predicted, H}, &stats_.ekf);
   observer_->on_observation(seen);
@@ -740,8 +742,8 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
 
 bool ImageFrontEnd::match_by_inverse_warp(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
                                           const Viewpoint& view, const Eigen::Vector2d& predicted,
-                                          PrimitivePoolView& pool, Eigen::Vector2d* observed,
-                                          Eigen::Matrix2d* covariance_px2) {
+                                          const Eigen::Matrix2d& A, PrimitivePoolView& pool,
+                                          Eigen::Vector2d* observed, Eigen::Matrix2d* covariance_px2) {
   Primitive& p = pool[i];
   PhotometricNormalQuery query;
   query.X_world = p.X_world;
@@ -759,7 +761,7 @@ bool ImageFrontEnd::match_by_inverse_warp(PrimitiveIndex i, const GrayImageView&
   NccTemplate reference;
   make_template(p.patch, &reference);
   const double signal = estimate.gain * estimate.gain * reference.stddev_gray * reference.stddev_gray;
-  const double ncc_min = config_.ncc_min;
+  const double ncc_min = config_.inverse_warp_ncc_min;
   if (!(estimate.gain > 0.0) || !(estimate.residual_variance_gray2 * ncc_min * ncc_min <= signal * (1.0 - ncc_min * ncc_min)) ||
       !estimate.shift_covariance_px2.allFinite()) {
     return false;
@@ -769,7 +771,11 @@ bool ImageFrontEnd::match_by_inverse_warp(PrimitiveIndex i, const GrayImageView&
     set_normal_tilt_variance(i, estimate.tilt_variance);
   }
   *observed = estimate.uv_target_px;
-  *covariance_px2 = estimate.shift_covariance_px2;
+  // The 49 reference samples lie on an image area of 49 / |det A| pixels: where that is smaller they are
+  // denser than the pixels whose noise they interpolate, and the fit, which counts each sample as
+  // independent, holds |det A| times the information the image has.
+  const double samples_per_pixel = std::abs(A.determinant());
+  *covariance_px2 = estimate.shift_covariance_px2 * (samples_per_pixel > 1.0 ? samples_per_pixel : 1.0);
   return true;
 }
 

@@ -119,11 +119,16 @@ struct FrontEndConfig {
   // A tracked primitive whose warped template would have fewer than half its pixels inside the stored
   // patch (TrackFailureCounts::template_masked: a view far from the creating one) is matched instead by
   // warping the image: the photometric normal's fit from the prediction over all 49 reference pixels, its
-  // shift covariance (sandwich form, the normal's tilt marginalized) as the match's covariance, its normal
-  // adopted when better known. Off by default: over 22 missions it raises the coverage from 64.8 % to
-  // 69.9 %, but the integration test's NEES rises on three of its four rows (EXPERIMENTS.md, "Matching
-  // masked templates by the inverse warp"). Needs photometric_normal's requirements.
+  // shift covariance (sandwich form, the normal's tilt marginalized, scaled by the samples per image pixel)
+  // as the match's covariance, its normal adopted when better known. Off by default: over 22 missions it
+  // raises the coverage from 64.8 % to 67.0 %, but the integration test's NEES moves away from its band on
+  // four of its eight rows (EXPERIMENTS.md, "Matching masked templates by the inverse warp", "The inverse
+  // warp's matches, one by one (session 14)"). Needs photometric_normal's requirements.
   bool inverse_warp_masked = false;
+  // The NCC an inverse-warp match must reach. The default is the tracker's ncc_min; the fit has no
+  // uniqueness test, but no single stricter value suits every scene (EXPERIMENTS.md, "The inverse warp's
+  // matches, one by one (session 14)").
+  float inverse_warp_ncc_min = 0.8f;
   // The reference patch's own pixel noise shifts the feature every match of a primitive looks for by the
   // same amount: an error common to all its observations, carried in the consider form of the update
   // (core/frontend/iterated_update.hpp) instead of averaging away. Its covariance is half the fit
@@ -271,6 +276,7 @@ struct TrackedObservation {
   Viewpoint view;
   Viewpoint creating_view;
   Status outcome = Status::kOk;             // kGatedOutlier: rejected by the Mahalanobis gate
+  bool inverse_warped = false;              // matched by warping the image (FrontEndConfig::inverse_warp_masked)
 };
 
 // Receives every TrackedObservation (ImageFrontEnd::set_observer). Called inside update(); it must not
@@ -368,7 +374,7 @@ class ImageFrontEnd final : public MeasurementSource {
                                            const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
                                            const Eigen::Vector2d& observed, const EkfConfig& ekf,
                                            const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
-                                           const Viewpoint& view, const Viewpoint& creating);
+                                           const Viewpoint& view, const Viewpoint& creating, bool inverse_warped);
   void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
                                 Eigen::Matrix2d* fit_covariance) const;
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
@@ -387,9 +393,10 @@ class ImageFrontEnd final : public MeasurementSource {
   void count_track_failure(bool template_usable, MatchOutcome outcome);
   // The inverse-warp match of a primitive whose warped template is masked (inverse_warp_masked): true with
   // *observed and *covariance_px2 set, and its normal replaced when the fit knows it better.
+  // A maps this image's offsets into the creating image's (the template's warp at the prior normal).
   bool match_by_inverse_warp(PrimitiveIndex i, const GrayImageView& image, const Viewpoint& creating,
-                             const Viewpoint& view, const Eigen::Vector2d& predicted, PrimitivePoolView& pool,
-                             Eigen::Vector2d* observed, Eigen::Matrix2d* covariance_px2);
+                             const Viewpoint& view, const Eigen::Vector2d& predicted, const Eigen::Matrix2d& A,
+                             PrimitivePoolView& pool, Eigen::Vector2d* observed, Eigen::Matrix2d* covariance_px2);
   // Counts one failed or gated observation of primitive i; flags it kUnconsumed at
   // unconsumed_after_rejections, erases it at max_rejected_in_a_row.
   void count_rejection(PrimitiveIndex i, std::size_t centre_cell, PrimitivePoolView& pool, UpdateReport& report,

@@ -205,23 +205,32 @@ namespace {
 struct ObliqueRun {
   TrackCounts counts;
   std::uint64_t inverse_warped = 0;
+  std::uint64_t observed_inverse_warped = 0;  // what a TrackObserver was shown as inverse-warped
   double rms_plane_error_sigmas = 0.0;
 };
-ObliqueRun track_oblique_view(bool inverse_warp_masked) {
+ObliqueRun track_oblique_view(bool inverse_warp_masked, float inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min) {
   Scene scene;
   FrontEndConfig config = plane_config();
   config.inverse_warp_masked = inverse_warp_masked;
+  config.inverse_warp_ncc_min = inverse_warp_ncc_min;
   initialize_on_plane(scene, first_view(), second_view(), config);
   (void)update_from(scene.render(third_view()), scene.k, third_view());
   const std::uint64_t inverse_before = g_front_end.stats().tracks_inverse_warped;
   const TrackCounts before = track_counts_now();
   const Viewpoint oblique = vantage::test::looking_at_origin({22.9, 32.8, 0.0});
   const auto image = scene.render(oblique);
+  struct : TrackObserver {
+    std::uint64_t inverse_warped = 0;
+    void on_observation(const TrackedObservation& o) override { inverse_warped += o.inverse_warped ? 1u : 0u; }
+  } observer;
+  g_front_end.set_observer(&observer);
   UpdateReport report;
   Status updated = Status::kOk;
   REQUIRE_NO_ALLOCATION(updated = g_front_end.update(vantage::test::view_of(image, scene.k), oblique, g_pool, &report));
+  g_front_end.set_observer(nullptr);
   REQUIRE(ok(updated));
   ObliqueRun run;
+  run.observed_inverse_warped = observer.inverse_warped;
   run.counts = track_counts_since(before);
   run.inverse_warped = g_front_end.stats().tracks_inverse_warped - inverse_before;
   double sum_sq = 0.0;
@@ -250,10 +259,23 @@ TEST_CASE("inverse_warp_masked: an oblique view's masked templates are matched b
   // the plane.
   CHECK(on.counts.matched + on.counts.failed.total() == on.counts.predicted);
   CHECK(on.inverse_warped >= 0.4 * masked_off);
+  // Every inverse-warp match reaches the update, flagged for an observer.
+  CHECK(on.observed_inverse_warped == on.inverse_warped);
+  CHECK(off.observed_inverse_warped == 0u);
   CHECK(on.counts.failed.template_masked <= 0.6 * masked_off);
   CHECK(on.counts.matched >= off.counts.matched + 0.3 * masked_off);
   CHECK(off.rms_plane_error_sigmas < 2.0);
   CHECK(on.rms_plane_error_sigmas < 2.0);
+  // The fit has no uniqueness test, only its NCC threshold: a stricter one keeps fewer of its matches, a
+  // looser one more.
+  const ObliqueRun strict = track_oblique_view(true, 0.995f);
+  const ObliqueRun loose = track_oblique_view(true, 0.5f);
+  std::printf("inverse-warped matches at NCC 0.5 / %.2f / 0.995: %llu / %llu / %llu (of %llu masked off)\n",
+              FrontEndConfig{}.inverse_warp_ncc_min, static_cast<unsigned long long>(loose.inverse_warped),
+              static_cast<unsigned long long>(on.inverse_warped), static_cast<unsigned long long>(strict.inverse_warped),
+              static_cast<unsigned long long>(masked_off));
+  CHECK(strict.inverse_warped < on.inverse_warped);
+  CHECK(loose.inverse_warped >= on.inverse_warped);
 }
 
 TEST_CASE("a new primitive whose first re-observation fails is erased, a confirmed one only loses track") {
@@ -566,6 +588,11 @@ TEST_CASE("configure refuses cameras beyond the buffers and out-of-range setting
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
   bad = FrontEndConfig{};
   bad.ncc_min = std::nanf("");
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  bad = FrontEndConfig{};
+  bad.inverse_warp_ncc_min = 1.0f;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.inverse_warp_ncc_min = std::nanf("");
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
   bad = FrontEndConfig{};
   bad.seed_stride_px = 1;

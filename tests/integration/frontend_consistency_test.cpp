@@ -190,10 +190,71 @@ struct SceneRun {
   // The oracle without a gate (its observations have no outliers to reject; a 95% gate discards 5% of
   // good ones, those of the primitives furthest off) and with the iterated update the front end uses.
   Figures oracle_iterated;
+  // The inverse warp's accepted matches against the truth (MatchTruthObserver): mean NEES/2, count.
+  double inverse_warp_match_half_nees = 0.0;
+  std::size_t inverse_warp_matches = 0;
+};
+
+// Each accepted tracked update's match against the truth: the seed ray's surface point (as the NEES
+// takes it) projected into the view, its error e = observed - projection over the match's own covariance
+// C = R + B P_c B^T (the independent part and the reference patch's common error), e^T C^-1 e / 2 (1 when
+// consistent; median 0.693, 1 % above 4.605). Split by how it was matched and by the size of C, since a
+// consistent match model reads the same at every size.
+class MatchTruthObserver final : public TrackObserver {
+ public:
+  explicit MatchTruthObserver(const Scene& scene) : scene_(scene) {}
+  void on_observation(const TrackedObservation& o) override {
+    if (!ok(o.outcome)) return;
+    const PinholeIntrinsics& k = g_front_end.intrinsics();
+    Eigen::Vector2d uv;
+    Eigen::Vector3d truth;
+    Eigen::Vector2d truth_px;
+    if (!ok(project(o.prior.X_world, o.creating_view, k, &uv))) return;
+    const Eigen::Vector2d seed = vantage::sim::nearest_seed_px(uv, g_front_end.config().seed_stride_px);
+    if (!scene_.true_point(seed, o.creating_view, &truth) || !ok(project(truth, o.view, k, &truth_px))) return;
+    const Eigen::Matrix2d C = o.R_px2 + o.B * o.common_covariance_px2 * o.B.transpose();
+    const Eigen::Vector2d e = o.observed_px - truth_px;
+    const double sigma_px = std::sqrt(0.5 * C.trace());
+    const int size_class = sigma_px < 0.15 ? 0 : (sigma_px < 0.25 ? 1 : 2);
+    const double half_nees = 0.5 * e.dot(C.ldlt().solve(e));
+    values_[o.inverse_warped ? kInverseWarp : size_class].push_back(half_nees);
+  }
+  // The class's mean NEES/2 and count (0 and 0 when it is empty).
+  double mean(int match_class, std::size_t* count) const {
+    const std::vector<double>& v = values_[match_class];
+    *count = v.size();
+    double sum = 0.0;
+    for (double x : v) sum += x;
+    return v.empty() ? 0.0 : sum / v.size();
+  }
+  static constexpr int kInverseWarp = 3;
+  void print(const char* scene) const {
+    static const char* const kClasses[] = {"window search, sigma < 0.15 px", "window search, sigma 0.15-0.25 px",
+                                           "window search, sigma >= 0.25 px", "inverse warp"};
+    for (int c = 0; c < 4; ++c) {
+      std::vector<double> v = values_[c];
+      if (v.empty()) continue;
+      std::sort(v.begin(), v.end());
+      double sum = 0.0;
+      std::size_t above = 0;
+      for (double x : v) {
+        sum += x;
+        above += x > 4.605 ? 1u : 0u;
+      }
+      std::printf("%s, tracked matches against the truth, %s: N=%zu mean NEES/2 %.3f (1), median %.3f (0.693), above "
+                  "the 99%% quantile %.3f (0.010)\n",
+                  scene, kClasses[c], v.size(), sum / v.size(), v[v.size() / 2], static_cast<double>(above) / v.size());
+    }
+  }
+
+ private:
+  const Scene& scene_;
+  std::vector<double> values_[4];
 };
 
 // Runs the front end over the scene's views; returns the matched and predicted totals of the updates.
-void run_front_end(const Scene& scene, const FrontEndConfig& config, double* matched, double* predicted) {
+void run_front_end(const Scene& scene, const FrontEndConfig& config, double* matched, double* predicted,
+                   SceneRun* run) {
   sim::RaycastCameraConfig camera_config;
   camera_config.intrinsics = scene.config->intrinsics;
   camera_config.shading = scene.config->shading;
@@ -210,6 +271,11 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
   UpdateReport report;
   REQUIRE(ok(g_front_end.initialize(va.as_const(), scene.views[0], vb.as_const(), scene.views[1], g_pool, &report)));
   std::printf("  init: spawned %u\n", report.spawned);
+  MatchTruthObserver observer(scene);
+  g_front_end.set_observer(&observer);
+  struct Unset {
+    ~Unset() { g_front_end.set_observer(nullptr); }  // also when a REQUIRE below throws
+  } unset;
   *matched = 0.0;
   *predicted = 0.0;
   for (std::size_t i = 2; i < scene.views.size(); ++i) {
@@ -221,6 +287,8 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
     *matched += report.matched;
     *predicted += report.predicted_in_view;
   }
+  observer.print(scene.name);
+  run->inverse_warp_match_half_nees = observer.mean(MatchTruthObserver::kInverseWarp, &run->inverse_warp_matches);
 }
 
 // One line per gross failure (NEES > kGrossNees), to tell their kinds apart: a seed patch across a depth
@@ -379,13 +447,18 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
               sums[2] / count, tails[2] / count, sums[3] / count, tails[3] / count);
 }
 
-SceneRun run_scene(const Scene& scene) {
+// The tracker's configuration: the default, or with masked templates matched by warping the image
+// (FrontEndConfig::inverse_warp_masked, off by default).
+enum class Matcher { kDefault, kInverseWarp };
+
+SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
-  const FrontEndConfig config;
+  FrontEndConfig config;
+  config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
   double matched = 0.0;
   double predicted = 0.0;
-  std::printf("%s:\n", scene.name);
-  run_front_end(scene, config, &matched, &predicted);
+  std::printf("%s%s:\n", scene.name, matcher == Matcher::kInverseWarp ? " (inverse_warp_masked)" : "");
+  run_front_end(scene, config, &matched, &predicted, &out);
   out.all = evaluate_front_end(scene, config, 0, matched, predicted);
   out.tracked = evaluate_front_end(scene, config, 3, matched, predicted);
   // Confirmation by parallax (core/frontend/EXPERIMENTS.md): "all" counts provisional primitives too.
@@ -421,7 +494,7 @@ sim::SceneConfig textured_scene(Resolution resolution) {
 }
 
 // The plane x = 0, 80 x 80 units, facing +x, seen on an arc of views (small-baseline pair first).
-std::unique_ptr<SceneRun> make_plane_run(Resolution resolution) {
+std::unique_ptr<SceneRun> make_plane_run(Resolution resolution, Matcher matcher) {
   sim::TriangleMesh mesh;
   mesh.vertices = {Eigen::Vector3f(0, -40, -40), Eigen::Vector3f(0, 40, -40), Eigen::Vector3f(0, 40, 40),
                    Eigen::Vector3f(0, -40, 40)};
@@ -448,11 +521,11 @@ std::unique_ptr<SceneRun> make_plane_run(Resolution resolution) {
     *n = Eigen::Vector3d::UnitX();
     return true;
   };
-  return std::make_unique<SceneRun>(run_scene(scene));
+  return std::make_unique<SceneRun>(run_scene(scene, matcher));
 }
 
 // The paper's bunny (normalized by sim_hal) on a horizontal arc at the viewing distance.
-std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution) {
+std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution, Matcher matcher) {
   const sim::SceneConfig scene_config = textured_scene(resolution);
   const sim::SimWorld world(scene_config);
   Scene scene;
@@ -483,20 +556,20 @@ std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution) {
     const sim::ClosestPoint c = embree.closest_point(X, 100.0);
     return c.found ? c.distance : 100.0;
   };
-  return std::make_unique<SceneRun>(run_scene(scene));
+  return std::make_unique<SceneRun>(run_scene(scene, matcher));
 }
 
-// Each scene runs once per test binary and resolution, on first use.
-const SceneRun& plane_run(Resolution resolution = Resolution::kHalfVga) {
-  static std::unique_ptr<SceneRun> runs[2];
-  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)];
-  if (!run) run = make_plane_run(resolution);
+// Each scene runs once per test binary, resolution and matcher, on first use.
+const SceneRun& plane_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault) {
+  static std::unique_ptr<SceneRun> runs[2][2];
+  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)];
+  if (!run) run = make_plane_run(resolution, matcher);
   return *run;
 }
-const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga) {
-  static std::unique_ptr<SceneRun> runs[2];
-  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)];
-  if (!run) run = make_bunny_run(resolution);
+const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault) {
+  static std::unique_ptr<SceneRun> runs[2][2];
+  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)];
+  if (!run) run = make_bunny_run(resolution, matcher);
   return *run;
 }
 
@@ -573,4 +646,25 @@ TEST_CASE("at 640x480, front end NEES on the bunny lies in the 95% chi-square ba
 // The oracle at 640x480: the estimator stays consistent, so what the front end loses there is its matches'.
 TEST_CASE("at 640x480, the oracle's iterated EKF without a gate is consistent (plane and bunny)", "[.][vga]") {
   check_oracle_consistent(Resolution::kVga);
+}
+
+// With masked templates matched by warping the image (hidden: `integration_tests "[inverse-warp]"`, 6 s in
+// Release; core/frontend/EXPERIMENTS.md, "Matching masked templates by the inverse warp"): more of the
+// predicted observations are matched, and the tracked primitives stay as accurate. Its NEES rows are
+// printed, not checked: the option is off by default because they do not all stay in their bands.
+TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives accurate", "[.][inverse-warp]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    const SceneRun& plane_default = plane_run(resolution);
+    const SceneRun& plane = plane_run(resolution, Matcher::kInverseWarp);
+    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny = bunny_run(resolution, Matcher::kInverseWarp);
+    CHECK(plane.all.match_rate > plane_default.all.match_rate);
+    CHECK(bunny.all.match_rate > bunny_default.all.match_rate + 0.05);
+    CHECK(plane.tracked.rms_error < 0.06);
+    CHECK(bunny.tracked.rms_error < 0.1);
+    // On the plane its matches are consistent or conservative, one by one (measured 0.727 / 0.890; 0.872 /
+    // 1.064 before their covariance counted the samples per image pixel).
+    REQUIRE(plane.inverse_warp_matches > 300u);
+    CHECK(plane.inverse_warp_match_half_nees < 1.0);
+  }
 }
