@@ -62,7 +62,7 @@ Status target_map(const PhotometricNormalQuery& q, const PlaneViews& views, cons
 // Solves A X = B for every column of B, A symmetric 6x6: a plain Cholesky factorization when A is
 // positive definite (the usual case), else Eigen's LDLT with its positivity check, as before (it also
 // takes semidefinite systems, giving zero for the components of zero pivots). False when neither holds.
-// Only the columns wanted are passed (a step: one; the tilt covariance: two of the identity), so no
+// Only the columns wanted are passed (a step: one; the shift and tilt covariances: four of the identity), so no
 // 6x6 right-hand side is built, zeroed or copied for them.
 template <int Cols>
 [[gnu::noinline]] bool solve_spd(const Matrix6d& A, const Eigen::Matrix<double, kParams, Cols>& B,
@@ -201,16 +201,14 @@ double residual_variance(const NormalEquations& eq) {
   information = 0.5 * (information + information.transpose()).eval();
   information(2, 2) += prior_information;
   information(3, 3) += prior_information;
-  // Only the tilt and shift blocks of the inverse: the columns of those four parameters.
-  Eigen::Matrix<double, kParams, 2> tilt_columns;
-  Eigen::Matrix<double, kParams, 2> shift_columns;
-  if (!solve_spd<2>(information, Matrix6d::Identity().middleCols<2>(2), &tilt_columns) ||
-      !solve_spd<2>(information, Matrix6d::Identity().leftCols<2>(), &shift_columns)) {
+  // Only the shift and tilt blocks of the inverse: the columns of those four parameters (the first four),
+  // from one factorization.
+  Eigen::Matrix<double, kParams, 4> columns;
+  if (!solve_spd<4>(information, Matrix6d::Identity().leftCols<4>(), &columns) || !columns.allFinite()) {
     return Status::kNotSpd;
   }
-  if (!tilt_columns.allFinite() || !shift_columns.allFinite()) return Status::kNotSpd;
-  *tilt_covariance = 0.5 * (tilt_columns.middleRows<2>(2) + tilt_columns.middleRows<2>(2).transpose());
-  *shift_covariance = 0.5 * (shift_columns.topRows<2>() + shift_columns.topRows<2>().transpose());
+  *tilt_covariance = 0.5 * (columns.block<2, 2>(2, 2) + columns.block<2, 2>(2, 2).transpose());
+  *shift_covariance = 0.5 * (columns.block<2, 2>(0, 0) + columns.block<2, 2>(0, 0).transpose());
   return Status::kOk;
 }
 
