@@ -47,6 +47,9 @@ struct MissionSettings {
   // FrontEndConfig::inverse_warp_masked: masked templates matched by warping the image (more coverage,
   // less consistent covariances; core/frontend/EXPERIMENTS.md).
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
+  // FrontEndConfig::inverse_warp_ncc_min: the NCC such a match must reach (a signal-to-noise threshold,
+  // so it depends on the camera and the scene's texture).
+  double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;
 };
 
 struct OnboardConfig {

@@ -83,6 +83,10 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--inverse-warp-masked", options.inverse_warp_masked,
                "image front end: match a primitive whose warped template would be masked by warping the image "
                "instead (default off: more coverage, less consistent estimates; core/frontend/EXPERIMENTS.md)");
+  app.add_option("--inverse-warp-ncc-min", options.inverse_warp_ncc_min,
+                 "image front end: the NCC an inverse-warp match must reach (with --inverse-warp-masked)")
+      ->check(CLI::Range(0.01, 0.999))
+      ->capture_default_str();
   app.add_flag("--presmooth", options.presmooth,
                "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
   app.add_option("--match-floor-rad", options.match_sigma_floor_rad,

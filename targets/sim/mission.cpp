@@ -214,6 +214,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.presmooth = options.presmooth;
     fc.inverse_warp_masked = options.inverse_warp_masked;
+    fc.inverse_warp_ncc_min = static_cast<float>(options.inverse_warp_ncc_min);
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;

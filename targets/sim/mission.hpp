@@ -42,6 +42,7 @@ struct MissionOptions {
   bool presmooth = FrontEndConfig{}.presmooth;
   // Image front end: FrontEndConfig::inverse_warp_masked (masked templates matched by warping the image).
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
+  double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;  // FrontEndConfig::inverse_warp_ncc_min
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
