@@ -11,6 +11,7 @@
 #include "core/image/binomial_smooth.hpp"
 #include "tests/core/frontend_test_scene.hpp"
 #include "tests/support/no_allocation.hpp"
+#include "tests/support/scoped_track_observer.hpp"
 
 using namespace vantage;
 
@@ -223,11 +224,12 @@ ObliqueRun track_oblique_view(bool inverse_warp_masked, float inverse_warp_ncc_m
     std::uint64_t inverse_warped = 0;
     void on_observation(const TrackedObservation& o) override { inverse_warped += o.inverse_warped ? 1u : 0u; }
   } observer;
-  g_front_end.set_observer(&observer);
   UpdateReport report;
   Status updated = Status::kOk;
-  REQUIRE_NO_ALLOCATION(updated = g_front_end.update(vantage::test::view_of(image, scene.k), oblique, g_pool, &report));
-  g_front_end.set_observer(nullptr);
+  {
+    const vantage::test::ScopedTrackObserver shown(g_front_end, observer);
+    REQUIRE_NO_ALLOCATION(updated = g_front_end.update(vantage::test::view_of(image, scene.k), oblique, g_pool, &report));
+  }
   REQUIRE(ok(updated));
   ObliqueRun run;
   run.observed_inverse_warped = observer.inverse_warped;
@@ -819,11 +821,12 @@ TEST_CASE("the track observer is shown every observation that reaches the EKF up
   const auto c = scene.render(third);
   CountingObserver observer;
   observer.pool = &g_pool;
-  g_front_end.set_observer(&observer);
   UpdateReport report;
   Status status = Status::kOk;
-  REQUIRE_NO_ALLOCATION(status = g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report));
-  g_front_end.set_observer(nullptr);
+  {
+    const vantage::test::ScopedTrackObserver shown(g_front_end, observer);
+    REQUIRE_NO_ALLOCATION(status = g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report));
+  }
   REQUIRE(ok(status));
   CHECK(report.updated > 100u);
   CHECK(observer.updated == report.updated);
@@ -864,9 +867,10 @@ TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_
     config.match_sigma_floor_rad = floor_rad;
     initialize_on_plane(scene, first_view(), second_view(), config);
     RDiagonalObserver observer;
-    g_front_end.set_observer(&observer);
-    update_from(c, scene.k, third);
-    g_front_end.set_observer(nullptr);
+    {
+      const vantage::test::ScopedTrackObserver shown(g_front_end, observer);
+      update_from(c, scene.k, third);
+    }
     REQUIRE(observer.updated > 100u);
     return observer;
   };

@@ -21,6 +21,7 @@
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
 #include "sim_hal/world/sim_world.hpp"
+#include "tests/support/scoped_track_observer.hpp"
 
 using namespace vantage;
 
@@ -272,10 +273,7 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
   REQUIRE(ok(g_front_end.initialize(va.as_const(), scene.views[0], vb.as_const(), scene.views[1], g_pool, &report)));
   std::printf("  init: spawned %u\n", report.spawned);
   MatchTruthObserver observer(scene);
-  g_front_end.set_observer(&observer);
-  struct Unset {
-    ~Unset() { g_front_end.set_observer(nullptr); }  // also when a REQUIRE below throws
-  } unset;
+  const vantage::test::ScopedTrackObserver shown(g_front_end, observer);  // also unset when a REQUIRE throws
   *matched = 0.0;
   *predicted = 0.0;
   for (std::size_t i = 2; i < scene.views.size(); ++i) {
