@@ -156,8 +156,8 @@ inline Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_c
 
 Status FrontEndConfig::validate() const {
   const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, inverse_warp_ncc_min, uniqueness_ratio,
-                           depth_min, depth_max, max_initial_sigma, warp_min_deviation, min_facing_cos, min_image_stddev_gray,
-                           max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
+                           depth_min, depth_max, max_initial_sigma, warp_min_deviation, min_facing_cos,
+                           min_image_stddev_gray, max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information};
@@ -167,8 +167,10 @@ Status FrontEndConfig::validate() const {
   const Status ekf_status = ekf.validate();
   if (!ok(ekf_status)) return ekf_status;
   if (seed_stride_px < kFrontEndMinSeedStride || seed_stride_px > 64) return Status::kInvalidArgument;
-  if (!(min_texture_stddev_gray >= 0.0f) || !(ncc_min > 0.0f && ncc_min < 1.0f) ||
-      !(spawn_ncc_min > 0.0f && spawn_ncc_min < 1.0f) || !(inverse_warp_ncc_min > 0.0f && inverse_warp_ncc_min < 1.0f)) {
+  // Every NCC threshold lies strictly between 0 and 1.
+  auto ncc_threshold = [](float t) { return t > 0.0f && t < 1.0f; };
+  if (!(min_texture_stddev_gray >= 0.0f) || !ncc_threshold(ncc_min) || !ncc_threshold(spawn_ncc_min) ||
+      !ncc_threshold(inverse_warp_ncc_min)) {
     return Status::kInvalidArgument;
   }
   if (!(uniqueness_ratio > 0.0f && uniqueness_ratio <= 1.0f)) return Status::kInvalidArgument;
