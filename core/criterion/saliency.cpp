@@ -29,31 +29,43 @@ float patch_autocorrelation_entropy(const Patch& patch, float min_stddev) {
   // Its squares, normalized to sum 1, are the distribution whose entropy measures flatness. Squares, not
   // magnitudes: with |a| the many small lags of white noise outweigh its peak and noise measures as flat
   // as a shading ramp (measured: 0.90 vs 0.94); with a^2 noise measures 0.41-0.67, ramps 0.78-0.82.
+  // a(-d) = a(d), and bit for bit: lag -d's products are lag d's, commuted, met in the same order (rows,
+  // then columns, ascending), so each sum is computed once, for the lags from (0, 0) on in row-major
+  // order, and its mirror copied. The totals and the entropy still run over all lags in their order.
+  constexpr int kCentre = (kP - 1) * kLags + (kP - 1);  // the index of lag (0, 0)
   double weight[kLags * kLags];
-  double total = 0.0;
-  for (int dy = -(kP - 1); dy <= kP - 1; ++dy) {
-    for (int dx = -(kP - 1); dx <= kP - 1; ++dx) {
+  for (int dy = 0; dy <= kP - 1; ++dy) {
+    for (int dx = dy == 0 ? 0 : -(kP - 1); dx <= kP - 1; ++dx) {
       double sum = 0.0;
-      for (int y = 0; y < kP; ++y) {
-        const int y2 = y + dy;
-        if (y2 < 0 || y2 >= kP) continue;
-        for (int x = 0; x < kP; ++x) {
-          const int x2 = x + dx;
-          if (x2 < 0 || x2 >= kP) continue;
-          sum += centred[y * kP + x] * centred[y2 * kP + x2];
-        }
+      for (int y = 0; y + dy < kP; ++y) {
+        const int x_begin = dx < 0 ? -dx : 0;
+        const int x_end = dx > 0 ? kP - dx : kP;
+        for (int x = x_begin; x < x_end; ++x) sum += centred[y * kP + x] * centred[(y + dy) * kP + x + dx];
       }
       const double r = sum / energy;
-      const double a = r * r;
-      weight[(dy + kP - 1) * kLags + (dx + kP - 1)] = a;
-      total += a;
+      const int index = (dy + kP - 1) * kLags + (dx + kP - 1);
+      weight[index] = r * r;
+      weight[2 * kCentre - index] = r * r;  // lag (-dx, -dy)
     }
   }
+  double total = 0.0;
+  for (double a : weight) total += a;
+  // -p log p of each lag, once per mirrored pair (log is the costly part).
+  double term[kLags * kLags];
+  for (int i = 0; i <= kCentre; ++i) {
+    const double a = weight[i];
+    if (a <= 0.0) {
+      term[i] = 0.0;  // 0 log 0 = 0
+    } else {
+      const double q = a / total;
+      term[i] = q * std::log(q);
+    }
+    term[2 * kCentre - i] = term[i];
+  }
   double entropy = 0.0;
-  for (double a : weight) {
-    if (a <= 0.0) continue;  // 0 log 0 = 0
-    const double p = a / total;
-    entropy -= p * std::log(p);
+  for (int i = 0; i < kLags * kLags; ++i) {
+    if (weight[i] <= 0.0) continue;
+    entropy -= term[i];
   }
   return static_cast<float>(entropy / std::log(static_cast<double>(kLags * kLags)));
 }
