@@ -336,8 +336,8 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
       const int pieces = static_cast<int>(std::ceil(step.cwiseAbs().maxCoeff())) + 1;
       for (int i = 0; i <= pieces; ++i) {
         const Eigen::Vector2d p = previous_px + step * (static_cast<double>(i) / pieces);
-        const std::int32_t x = static_cast<std::int32_t>(std::lround(p.x()));
-        const std::int32_t y = static_cast<std::int32_t>(std::lround(p.y()));
+        const std::int32_t x = round_to_int(p.x());
+        const std::int32_t y = round_to_int(p.y());
         if (x == last_x && y == last_y) continue;
         // A depth range that leaves the image may hold the true match where it cannot be searched: then
         // the best in-image peak proves nothing, so the seed is not matched at all.
