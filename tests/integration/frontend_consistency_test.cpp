@@ -485,7 +485,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   // Confirmation by parallax (core/frontend/EXPERIMENTS.md): "all" counts provisional primitives too.
   const Figures confirmed = evaluate_front_end(scene, config, 0, matched, predicted, 0);
   const Figures provisional = evaluate_front_end(scene, config, 0, matched, predicted, 1);
-  // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Session 15"): the primitives matched in
+  // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Where the over-confidence sits"): the primitives matched in
   // every view that sees them against those that missed one.
   const Figures matched_every_view =
       evaluate_front_end(scene, config, 0, matched, predicted, -1, TrackRecord::kMatchedEveryView);
