@@ -9,14 +9,15 @@ namespace {
 constexpr int kP = kPatchSize;
 constexpr int kLags = 2 * kP - 1;
 
-// The autocorrelation sums of the lags (dx, dy), dy = 0 .. kP - 1 and dx = -(kP - 1) .. kP - 1, as
-// sums[dy][dx + kP - 1]: each the products centred[y][x] * centred[y + dy][x + dx] over y, then x,
-// ascending, the pairs outside the patch skipped.
+// The autocorrelation sums of the lags (dx, dy) from (0, 0) on in row-major order (dy = 0 .. kP - 1, dx
+// from 0 in row 0 and from -(kP - 1) in the others, to kP - 1), as sums[dy][dx + kP - 1]: each the
+// products centred[y][x] * centred[y + dy][x + dx] over y, then x, ascending, the pairs outside the patch
+// skipped. The other entries (row 0, dx < 0: mirrors of computed lags) are not read.
 using LagSums = double[kP][kLags];
 
 void lag_sums_scalar(const double* centred, LagSums& sums) {
   for (int dy = 0; dy < kP; ++dy) {
-    for (int dx = -(kP - 1); dx <= kP - 1; ++dx) {
+    for (int dx = dy == 0 ? 0 : -(kP - 1); dx <= kP - 1; ++dx) {
       double sum = 0.0;
       for (int y = 0; y + dy < kP; ++y) {
         const int x_begin = dx < 0 ? -dx : 0;
@@ -133,10 +134,7 @@ float patch_autocorrelation_entropy(const Patch& patch, float min_stddev) {
     term[2 * kCentre - i] = term[i];
   }
   double entropy = 0.0;
-  for (int i = 0; i < kLags * kLags; ++i) {
-    if (weight[i] <= 0.0) continue;
-    entropy -= term[i];
-  }
+  for (double t : term) entropy -= t;  // a lag of weight 0 subtracts 0: the sum is unchanged
   return static_cast<float>(entropy / std::log(static_cast<double>(kLags * kLags)));
 }
 

@@ -97,7 +97,7 @@ TEST_CASE("the entropy equals the direct sum over all 13 x 13 lags") {
   for (int i = 0; i < kPatchSize * kPatchSize; ++i) edge[i] = i % kPatchSize < 3 ? 0 : 255;
   patches.push_back(edge);
   for (const Patch& patch : patches) {
-    const double expected = static_cast<float>(direct_entropy(patch));
+    const float expected = static_cast<float>(direct_entropy(patch));
     const float e = patch_autocorrelation_entropy(patch, 0.0f);
 #if defined(__x86_64__)
     CHECK(e == expected);  // the same sums in the same order: bit for bit
