@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "core/common/double_lanes.hpp"
+
 namespace vantage {
 
 namespace {
@@ -29,15 +31,13 @@ void lag_sums_scalar(const double* centred, LagSums& sums) {
   }
 }
 
-#if defined(__x86_64__) || defined(__aarch64__)
-// The same with the 13 lags of a row dy in vector lanes (16, three unused): the second factor read from a
-// copy padded with zeros, so every lane runs over all of x and adds +-0 where the scalar form skips a
-// pair; adding a signed zero to a finite sum leaves it as it is, so each lane ends with the scalar sum's
-// bits. On x86-64 nothing is fused (no FMA in this file's target); GCC for AArch64 fuses each product
-// into its sum in both forms alike, and fma(c, +-0, s) = s, so there too (the core test checks both bit
-// for bit). Always inlined, so it takes the target of the function it is inlined into (AVX2 on x86-64;
-// Advanced SIMD, part of every AArch64 core, on the onboard build), and no vector crosses a call.
-__attribute__((always_inline)) inline void lag_sums_lanes(const double* centred, LagSums& sums) {
+#if VANTAGE_DOUBLE_LANES
+// The same with the 13 lags of a row dy in vector lanes (16, three unused; core/common/double_lanes.hpp):
+// the second factor read from a copy padded with zeros, so every lane runs over all of x and adds +-0 where
+// the scalar form skips a pair; adding a signed zero to a finite sum leaves it as it is, so each lane ends
+// with the scalar sum's bits. On x86-64 nothing is fused; GCC for AArch64 fuses each product into its sum
+// in both forms alike, and fma(c, +-0, s) = s, so there too (the core test checks both bit for bit).
+VANTAGE_DOUBLE_LANES_TARGET void lag_sums_lanes(const double* centred, LagSums& sums) {
   using Double4 = double __attribute__((vector_size(32)));
   constexpr int kPadded = 24;  // columns -6 .. 17 of a row: lane j of centre x reads column x + j - 6
   double padded[kP][kPadded] = {};
@@ -77,21 +77,12 @@ __attribute__((always_inline)) inline void lag_sums_lanes(const double* centred,
 }
 #endif
 
-#if defined(__x86_64__)
-__attribute__((target("avx2"))) void lag_sums_avx2(const double* centred, LagSums& sums) {
-  lag_sums_lanes(centred, sums);
-}
-#endif
-
 void lag_sums(const double* centred, LagSums& sums) {
-#if defined(__x86_64__)
-  if (__builtin_cpu_supports("avx2")) {
-    lag_sums_avx2(centred, sums);
+#if VANTAGE_DOUBLE_LANES
+  if (VANTAGE_DOUBLE_LANES_AVAILABLE()) {
+    lag_sums_lanes(centred, sums);
     return;
   }
-#elif defined(__aarch64__)
-  lag_sums_lanes(centred, sums);
-  return;
 #endif
   lag_sums_scalar(centred, sums);
 }
@@ -151,8 +142,7 @@ float patch_autocorrelation_entropy(const Patch& patch, float min_stddev) {
 }
 
 float saliency_step(float entropy, const SaliencyParams& params) {
-  if (!std::isfinite(params.tau) || !std::isfinite(params.gamma) || !(params.gamma > 0.0f) ||
-      !std::isfinite(entropy)) {
+  if (!std::isfinite(params.tau) || !std::isfinite(params.gamma) || !(params.gamma > 0.0f) || !std::isfinite(entropy)) {
     return 0.0f;
   }
   return 0.5f * std::erfc((entropy - params.tau) / params.gamma);
