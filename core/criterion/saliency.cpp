@@ -142,7 +142,8 @@ float patch_autocorrelation_entropy(const Patch& patch, float min_stddev) {
 }
 
 float saliency_step(float entropy, const SaliencyParams& params) {
-  if (!std::isfinite(params.tau) || !std::isfinite(params.gamma) || !(params.gamma > 0.0f) || !std::isfinite(entropy)) {
+  if (!std::isfinite(params.tau) || !std::isfinite(params.gamma) || !(params.gamma > 0.0f) ||
+      !std::isfinite(entropy)) {
     return 0.0f;
   }
   return 0.5f * std::erfc((entropy - params.tau) / params.gamma);

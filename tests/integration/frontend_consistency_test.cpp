@@ -315,9 +315,14 @@ void print_if_gross(const Scene& scene, const Primitive& p, double nees, const E
               depth_max);
 }
 
-// Which primitives a row counts by how their tracking went: all, those updated in every later view that
-// sees their true point (in the image and not hidden), or those that missed at least one such view.
-enum class TrackRecord { kAny, kMatchedEveryView, kMissedAView };
+// A row's primitives split by how their tracking went: those updated in every later view that sees their
+// true point (in the image and not hidden), and those that missed at least one such view. A gate rejects
+// the observations of the primitives furthest off, so even the oracle's that missed a view are
+// over-confident (core/frontend/EXPERIMENTS.md, "What the split measures (session 16)").
+struct TrackSplit {
+  Figures matched_every_view;
+  Figures missed_a_view;
+};
 
 // The views after a primitive's creation (the tracked ones: from the third on) in which its true point is
 // in the image and visible, minus its updates: the views whose match failed or was gated.
@@ -336,12 +341,15 @@ int missed_views(const Scene& scene, const Primitive& p, const Eigen::Vector3d& 
 }
 
 // The front end's primitives with at least min_updates updates against the seed ray's surface point;
-// provisional: -1 all, 0 only those a view has confirmed, 1 only primitive_flags::kProvisional ones.
+// provisional: -1 all, 0 only those a view has confirmed, 1 only primitive_flags::kProvisional ones;
+// split (may be null): the same primitives by missed_views.
 Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std::uint32_t min_updates, double matched,
-                           double predicted, int provisional = -1, TrackRecord record = TrackRecord::kAny) {
+                           double predicted, int provisional = -1, TrackSplit* split = nullptr) {
   const PinholeIntrinsics& k = g_front_end.intrinsics();
   const double stride = config.seed_stride_px;
   Samples samples(scene.surface_distance);
+  Samples every_view(scene.surface_distance);
+  Samples missed(scene.surface_distance);
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
     if (!g_pool.is_alive(i) || g_pool[i].observation_count < min_updates) continue;
     const Primitive& p = g_pool[i];
@@ -359,26 +367,20 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
     Eigen::Vector3d truth;
     const Eigen::Vector3d seed_ray = back_project_ray_world(seed, creating, k);
     if (!scene.true_point(seed, creating, &truth)) continue;
-    if (record != TrackRecord::kAny && (missed_views(scene, p, truth) > 0) != (record == TrackRecord::kMissedAView)) {
-      continue;
-    }
     const double nees = samples.add(p, truth, &seed_ray);
+    if (split != nullptr) (missed_views(scene, p, truth) > 0 ? missed : every_view).add(p, truth, &seed_ray);
     if (min_updates == 0 && provisional < 0) print_if_gross(scene, p, nees, truth, seed, seed_ray, creating);
+  }
+  if (split != nullptr) {
+    split->matched_every_view = every_view.summarize(matched, predicted);
+    split->missed_a_view = missed.summarize(matched, predicted);
   }
   return samples.summarize(matched, predicted);
 }
 
-// The oracle's primitives split as the front end's are (TrackRecord): a gate rejects the observations of
-// the primitives furthest off, so even this consistent source's primitives that missed a view are
-// over-confident (core/frontend/EXPERIMENTS.md, "What the split measures (session 16)").
-struct OracleSplit {
-  Figures matched_every_view;
-  Figures missed_a_view;
-};
-
 // The oracle on the same views, each primitive against its own true point; split (may be null) by
 // missed_views, which reads the front end's intrinsics: run after run_front_end on the same scene.
-Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, OracleSplit* split = nullptr) {
+Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, TrackSplit* split = nullptr) {
   sim::OracleConfig config;
   config.intrinsics = scene.config->intrinsics;
   config.site_count = 20000;
@@ -497,17 +499,15 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   double predicted = 0.0;
   std::printf("%s%s:\n", scene.name, matcher == Matcher::kInverseWarp ? " (inverse_warp_masked)" : "");
   run_front_end(scene, config, &matched, &predicted, &out);
-  out.all = evaluate_front_end(scene, config, 0, matched, predicted);
+  // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Where the over-confidence sits", "What
+  // the split measures"): the primitives matched in every view that sees them against those that missed one.
+  TrackSplit front_end_split;
+  out.all = evaluate_front_end(scene, config, 0, matched, predicted, -1, &front_end_split);
   out.tracked = evaluate_front_end(scene, config, 3, matched, predicted);
   // Confirmation by parallax (core/frontend/EXPERIMENTS.md): "all" counts provisional primitives too.
   const Figures confirmed = evaluate_front_end(scene, config, 0, matched, predicted, 0);
   const Figures provisional = evaluate_front_end(scene, config, 0, matched, predicted, 1);
-  // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Where the over-confidence sits"): the primitives matched in
-  // every view that sees them against those that missed one.
-  const Figures matched_every_view =
-      evaluate_front_end(scene, config, 0, matched, predicted, -1, TrackRecord::kMatchedEveryView);
-  const Figures missed_a_view = evaluate_front_end(scene, config, 0, matched, predicted, -1, TrackRecord::kMissedAView);
-  OracleSplit oracle_split;
+  TrackSplit oracle_split;
   out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations, &oracle_split);
   out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations);
   print_match_consistency(scene, config, scene.views.size() - 1);
@@ -515,8 +515,8 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   print(scene.name, "front end, >= 3 updates", out.tracked);
   print(scene.name, "front end, confirmed by parallax", confirmed);
   print(scene.name, "front end, provisional", provisional);
-  print(scene.name, "front end, matched in every view that sees it", matched_every_view);
-  print(scene.name, "front end, missed a view that sees it", missed_a_view);
+  print(scene.name, "front end, matched in every view that sees it", front_end_split.matched_every_view);
+  print(scene.name, "front end, missed a view that sees it", front_end_split.missed_a_view);
   print(scene.name, "oracle (95% gate, EKF), all primitives", out.oracle);
   print(scene.name, "oracle (95% gate, EKF), matched in every view that sees it", oracle_split.matched_every_view);
   print(scene.name, "oracle (95% gate, EKF), missed a view that sees it", oracle_split.missed_a_view);
