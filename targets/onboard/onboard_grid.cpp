@@ -1,6 +1,7 @@
 #include "targets/onboard/onboard_grid.hpp"
 
 #include "targets/common/grid_evaluation_threads.hpp"
+#include "targets/common/visible_primitives.hpp"
 
 namespace vantage::onboard {
 
@@ -31,14 +32,9 @@ Status OnboardGrid::viewpoint(const GridCell& cell, Viewpoint* out) const {
   return Status::kOk;
 }
 
-std::size_t OnboardGrid::visible_primitives(const Viewpoint& view, const PrimitivePoolView& pool, Span<PrimitiveIndex> out) {
-  if (model_.pool_revision() != pool.revision() || !model_.refreshed()) {
-    if (!ok(model_.refresh(pool))) return 0;
-  }
-  std::size_t count = 0;
-  const Status s = model_.visible_primitives(view, intrinsics_, scratch_[0], out, &count);
-  if (!ok(s) && s != Status::kPoolFull) return 0;
-  return count < out.size() ? count : out.size();
+std::size_t OnboardGrid::visible_primitives(const Viewpoint& view, const PrimitivePoolView& pool,
+                                           Span<PrimitiveIndex> out) {
+  return targets::visible_primitives_refreshed(model_, pool, view, intrinsics_, scratch_[0], out);
 }
 
 void OnboardGrid::refresh_free_cells(const PrimitivePoolView& pool) {

@@ -6,6 +6,7 @@
 
 #include "core/planning/path_query.hpp"
 #include "targets/common/grid_evaluation_threads.hpp"
+#include "targets/common/visible_primitives.hpp"
 #include "sim_hal/sim_error.hpp"
 
 namespace vantage::simtarget {
@@ -79,14 +80,8 @@ Status GridDriver::viewpoint(const GridCell& cell, Viewpoint* out) const {
 }
 
 std::size_t GridDriver::visible_primitives(const Viewpoint& view, const PrimitivePoolView& pool,
-                                           Span<PrimitiveIndex> out) {
-  if (model_.pool_revision() != pool.revision() || !model_.refreshed()) {
-    if (!ok(model_.refresh(pool))) return 0;
-  }
-  std::size_t count = 0;
-  const Status s = model_.visible_primitives(view, intrinsics_, scratch_[0], out, &count);
-  if (!ok(s) && s != Status::kPoolFull) return 0;
-  return count < out.size() ? count : out.size();
+                                          Span<PrimitiveIndex> out) {
+  return targets::visible_primitives_refreshed(model_, pool, view, intrinsics_, scratch_[0], out);
 }
 
 void GridDriver::refresh_free_cells(const PrimitivePoolView& pool) {
