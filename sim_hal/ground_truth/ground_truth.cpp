@@ -197,11 +197,48 @@ double GroundTruth::coverage(const PrimitivePoolView& pool, double distance, dou
       precise.push_back(pool[i].X_world);
     }
   }
-  if (precise.empty()) return 0.0;
+  return covered_fraction(precise, distance);
+}
+
+double GroundTruth::verified_coverage(const PrimitivePoolView& pool, double distance, double sigma_target,
+                                      double max_sigmas, std::size_t* precise_count,
+                                      std::size_t* verified_count) const {
+  std::vector<PrimitiveIndex> precise;
+  for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
+    if (pool.is_alive(i) && primitive_sigma(pool[i]) < sigma_target && pool[i].X_world.allFinite()) {
+      precise.push_back(i);
+    }
+  }
+  std::vector<std::uint8_t> within(precise.size(), 0);
+  parallel_for(precise.size(), config_.threads, [&](std::size_t k) {
+    const Primitive& p = pool[precise[k]];
+    const ClosestPoint c = scene_.closest_point(p.X_world, std::numeric_limits<double>::infinity());
+    if (!c.found) return;
+    if (c.distance == 0.0) {
+      within[k] = 1;
+      return;
+    }
+    // The error's own direction: its variance there is what the estimate claims about this error.
+    const Eigen::Vector3d e = (p.X_world - c.point) / c.distance;
+    const double variance = e.dot(p.Sigma_world * e);
+    within[k] = variance > 0.0 && c.distance <= max_sigmas * std::sqrt(variance) ? 1 : 0;
+  });
+  std::vector<Eigen::Vector3d> verified;
+  for (std::size_t k = 0; k < precise.size(); ++k) {
+    if (within[k] != 0) verified.push_back(pool[precise[k]].X_world);
+  }
+  if (precise_count != nullptr) *precise_count = precise.size();
+  if (verified_count != nullptr) *verified_count = verified.size();
+  if (visible_count_ == 0 || !(distance > 0.0)) return 0.0;
+  return covered_fraction(verified, distance);
+}
+
+double GroundTruth::covered_fraction(const std::vector<Eigen::Vector3d>& points, double distance) const {
+  if (points.empty() || visible_count_ == 0 || !(distance > 0.0)) return 0.0;
   Eigen::AlignedBox3d box = scene_.mesh().bounds();
   box.extend(box.min() - Eigen::Vector3d::Constant(distance));
   box.extend(box.max() + Eigen::Vector3d::Constant(distance));
-  const PointGrid grid(box, distance, precise);
+  const PointGrid grid(box, distance, points);
   std::atomic<std::size_t> covered{0};
   parallel_for(samples_.size(), config_.threads, [&](std::size_t i) {
     if (visible_[i] != 0 && grid.any_within(samples_[i].position, distance)) covered.fetch_add(1, std::memory_order_relaxed);

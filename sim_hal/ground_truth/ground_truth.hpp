@@ -12,6 +12,10 @@
 //  (d) accuracy: each primitive's distance to the true surface (closest point, Embree point query),
 //      RMS and 95th percentile (nearest-rank) over alive primitives;
 //  (e) average sigma: mean of primitive_sigma over alive primitives.
+//  (f) verified coverage(d, sigma_target, k): (c) counting only the precise primitives whose distance to
+//      the true surface is at most k of their own standard deviations along that distance's direction
+//      (sqrt(e^T Sigma e), e the unit vector to the closest surface point): what an over-confident
+//      estimate claims but does not have is left out.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -77,6 +81,10 @@ class GroundTruth {
                            double min_cos_incidence = 0.0);
 
   double coverage(const PrimitivePoolView& pool, double distance, double sigma_target) const;
+  // (f); precise_count / verified_count (when not null): the alive primitives with sigma < sigma_target,
+  // and those of them within max_sigmas of the surface.
+  double verified_coverage(const PrimitivePoolView& pool, double distance, double sigma_target, double max_sigmas,
+                           std::size_t* precise_count = nullptr, std::size_t* verified_count = nullptr) const;
   // Fills distances (one per alive primitive, in index order) when not null.
   void accuracy(const PrimitivePoolView& pool, double* rms, double* p95, double* max,
                 std::vector<double>* distances = nullptr) const;
@@ -85,6 +93,9 @@ class GroundTruth {
   Evaluation evaluate(const PrimitivePoolView& pool) const;
 
  private:
+  // The share of visible samples within distance of one of the points (the grid search of (c)).
+  double covered_fraction(const std::vector<Eigen::Vector3d>& points, double distance) const;
+
   const EmbreeScene& scene_;
   GroundTruthConfig config_;
   std::vector<SurfaceSample> samples_;

@@ -188,6 +188,9 @@ int run_cli(int argc, const char* const* argv) {
                 << "; never observed " << summary.provisional_unobserved << ", rms " << summary.accuracy_rms_unobserved
                 << "); >= 2 updates rms " << summary.accuracy_rms_updated2 << "; > 1 unit off "
                 << summary.gross << " (provisional " << summary.gross_provisional << ")\n";
+      std::cout << "  verified: coverage " << 100.0 * summary.verified_coverage << "%; " << summary.precise_verified
+                << " of the " << summary.precise << " primitives with sigma < target lie within " << kVerifiedSigmas
+                << " of their sigmas of the surface\n";
       if (summary.measurement == to_string(MeasurementKind::kImage)) {
         std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched,
                                                    summary.tracks_inverse_warped, summary.track_failures) << "\n";

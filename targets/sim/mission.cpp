@@ -373,6 +373,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.coverage = setup.ground_truth->coverage(g_pool, g_goal.distance, options.sigma_target);
   summary.model_coverage =
       setup.ground_truth->coverage(g_pool, g_goal.distance, std::numeric_limits<double>::infinity());
+  summary.verified_coverage = setup.ground_truth->verified_coverage(
+      g_pool, g_goal.distance, options.sigma_target, kVerifiedSigmas, &summary.precise, &summary.precise_verified);
   double rms = 0.0, p95 = 0.0, max_error = 0.0;
   std::vector<double> distances;
   setup.ground_truth->accuracy(g_pool, &rms, &p95, &max_error, &distances);

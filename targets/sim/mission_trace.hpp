@@ -38,6 +38,10 @@ struct MissionTrace {
   std::vector<ReplanRecord> replans;
 };
 
+// A precise primitive counts toward verified coverage when its distance to the surface is within this many
+// of its own standard deviations along that direction: 99.7 % of a consistent estimate's errors are.
+inline constexpr double kVerifiedSigmas = 3.0;
+
 struct MissionSummary {
   std::string scene;
   std::string planner;
@@ -47,6 +51,11 @@ struct MissionSummary {
   double path_length = 0.0;               // scene units
   double coverage = 0.0;                  // ground truth, [0, 1]: visible samples near a primitive with sigma < target
   double model_coverage = 0.0;            // ground truth, [0, 1]: visible samples near any primitive
+  // ground truth, [0, 1]: coverage counting only the precise primitives (sigma < target) whose distance to
+  // the surface is within kVerifiedSigmas of their own standard deviation along it (sim_hal/README.md (f))
+  double verified_coverage = 0.0;
+  std::size_t precise = 0;                // alive primitives with sigma < target
+  std::size_t precise_verified = 0;       // of which within kVerifiedSigmas of the surface
   double mean_sigma = 0.0;                // PrecisionLevel, units
   double accuracy_rms = 0.0;              // ground truth, units
   double accuracy_p95 = 0.0;

@@ -142,3 +142,55 @@ TEST_CASE("coverage and accuracy and average sigma follow their definitions", "[
   CHECK(e.coverage < static_cast<double>(kept) / total + 0.05);
   CHECK(e.coverage > static_cast<double>(kept) / total - 0.01);
 }
+
+TEST_CASE("verified coverage counts a precise primitive only within k of its own sigmas of the surface", "[sim_hal][ground_truth]") {
+  const EmbreeScene scene{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
+  const OccupancyGrid occupancy(scene.mesh(), small_grid(), 0.5);
+  GroundTruthConfig config;
+  config.sample_count = 4000;
+  const GroundTruth truth(scene, occupancy, small_intrinsics(), config);
+  g_pool.clear();
+  std::size_t precise = 99, verified = 99;
+  CHECK(truth.verified_coverage(g_pool, 0.5, 0.01, 3.0, &precise, &verified) == 0.0);
+  CHECK(precise == 0);
+  CHECK(verified == 0);
+
+  // Every visible sample gets a primitive 0.02 outside it. Its standard deviation along the surface normal
+  // is 0.01 (2 sigmas off) where the sample's x is below 0, 0.005 (4 sigmas off) elsewhere; across the
+  // normal 0.001, so sigma(P) stays below the 0.01 target either way. The sides at x = +-5 are the
+  // exception: their normal is x itself, so they fall wholly in one group each.
+  std::size_t near = 0, far = 0;
+  const auto& samples = truth.samples();
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (truth.visible()[i] == 0) continue;
+    const Eigen::Vector3d n = samples[i].normal;
+    const double along = samples[i].position.x() < 0.0 ? 0.01 : 0.005;
+    (along == 0.01 ? near : far) += 1;
+    Primitive p;
+    p.X_world = samples[i].position + 0.02 * n;
+    p.Sigma_world = 1e-6 * Eigen::Matrix3d::Identity() + (along * along - 1e-6) * n * n.transpose();
+    REQUIRE(primitive_sigma(p) < 0.01);
+    PrimitiveIndex index;
+    REQUIRE(ok(g_pool.insert(p, &index)));
+  }
+  REQUIRE(near > 100);
+  REQUIRE(far > 100);
+  CHECK(truth.coverage(g_pool, 0.5, 0.01) == 1.0);
+  const double covered = truth.verified_coverage(g_pool, 0.5, 0.01, 3.0, &precise, &verified);
+  CHECK(precise == near + far);
+  CHECK(verified == near);
+  // The covered share is at least the near group's and below 1: samples of the far group within 0.5 of a
+  // near primitive count too, the rest not.
+  CHECK(covered >= static_cast<double>(near) / static_cast<double>(near + far) - 1e-12);
+  CHECK(covered < 1.0);
+  // With k = 5 both groups lie within their sigmas; with k = 1 neither does.
+  CHECK(truth.verified_coverage(g_pool, 0.5, 0.01, 5.0, &precise, &verified) == 1.0);
+  CHECK(verified == near + far);
+  CHECK(truth.verified_coverage(g_pool, 0.5, 0.01, 1.0, &precise, &verified) == 0.0);
+  CHECK(verified == 0);
+  // Above the sigma target nothing is precise, verified or not; a NaN k verifies nothing.
+  CHECK(truth.verified_coverage(g_pool, 0.5, 0.002, 5.0, &precise, &verified) == 0.0);  // sigma(P) 0.0030 and 0.0058
+  CHECK(precise == 0);
+  CHECK(truth.verified_coverage(g_pool, 0.5, 0.01, std::nan(""), &precise, &verified) == 0.0);
+  CHECK(verified == 0);
+}

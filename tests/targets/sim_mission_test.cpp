@@ -1,5 +1,7 @@
 // Short end-to-end missions through vantage-sim's command line (in-process): the small scene, the
 // oracle measurement source, goals scaled to the scene's coarse 160 x 120 camera.
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -39,6 +41,13 @@ const std::vector<std::string> kSmallMission = {"--scene", VANTAGE_SMALL_SCENE, 
                                                  "--gt-samples", "2000", "--oracle-sites", "2000",
                                                  "--sigma-target", "0.05", "--coverage-target", "0.25", "--quiet"};
 
+// The number after "key": in summary.json (NaN when the key is missing).
+double json_number(const std::string& json, const std::string& key) {
+  const std::string tag = "\"" + key + "\": ";
+  const std::size_t at = json.find(tag);
+  return at == std::string::npos ? std::nan("") : std::strtod(json.c_str() + at + tag.size(), nullptr);
+}
+
 }  // namespace
 
 TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the report") {
@@ -51,6 +60,16 @@ TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the 
   CHECK(summary.find("\"planner\": \"nbv\"") != std::string::npos);
   CHECK(summary.find("\"model_coverage\": ") != std::string::npos);
   CHECK(summary.find("\"split_epsilon_cells\": ") != std::string::npos);
+  // Verified coverage keeps a subset of coverage's primitives; the oracle's estimates are consistent, so
+  // nearly all of its precise primitives lie within 3 of their sigmas of the surface (99.7 % would).
+  const double coverage = json_number(summary, "coverage");
+  const double verified = json_number(summary, "verified_coverage");
+  const double precise = json_number(summary, "precise");
+  const double precise_verified = json_number(summary, "precise_verified");
+  CHECK(verified <= coverage);
+  CHECK(verified > 0.0);
+  CHECK(precise_verified <= precise);
+  CHECK(precise_verified >= 0.95 * precise);
   for (const char* file : {"grid.png", "performance.png", "uncertainty.png", "model.ply", "performance.dat"}) {
     INFO(file);
     CHECK(fs::file_size(out / file) > 100u);
