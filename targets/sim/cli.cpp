@@ -25,14 +25,16 @@ int exit_code(const MissionSummary& s) { return s.reached_goal ? 0 : (s.failed ?
 std::string compare_table(const std::vector<MissionSummary>& runs) {
   std::ostringstream out;
   char line[512];
-  std::snprintf(line, sizeof line, "%-9s %-8s %7s %9s %11s %9s %9s %10s %12s %14s  %s\n", "planner", "goal", "images",
-                "NBV iter", "path", "coverage", "model cov", "avg sigma", "accuracy", "plan s/iter", "end");
+  std::snprintf(line, sizeof line, "%-9s %-8s %7s %9s %11s %9s %9s %9s %10s %12s %14s  %s\n", "planner", "goal",
+                "images", "NBV iter", "path", "coverage", "verified", "model cov", "avg sigma", "accuracy", "plan s/iter",
+                "end");
   out << line;
   for (const MissionSummary& s : runs) {
     const double per_iteration = s.nbv_iterations > 0 ? s.planning_seconds / s.nbv_iterations : 0.0;
-    std::snprintf(line, sizeof line, "%-9s %-8s %7u %9u %11.1f %8.1f%% %8.1f%% %10.5f %12.5f %14.3f  %s\n",
+    std::snprintf(line, sizeof line, "%-9s %-8s %7u %9u %11.1f %8.1f%% %8.1f%% %8.1f%% %10.5f %12.5f %14.3f  %s\n",
                   s.planner.c_str(), s.reached_goal ? "reached" : "no", s.images, s.nbv_iterations, s.path_length,
-                  100.0 * s.coverage, 100.0 * s.model_coverage, s.mean_sigma, s.accuracy_rms, per_iteration, s.end_reason.c_str());
+                  100.0 * s.coverage, 100.0 * s.verified_coverage, 100.0 * s.model_coverage, s.mean_sigma,
+                  s.accuracy_rms, per_iteration, s.end_reason.c_str());
     out << line;
   }
   return out.str();
