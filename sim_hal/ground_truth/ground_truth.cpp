@@ -189,26 +189,27 @@ double GroundTruth::visible_area() const {
   return samples_.empty() ? 0.0 : surface_area_ * static_cast<double>(visible_count_) / samples_.size();
 }
 
-double GroundTruth::coverage(const PrimitivePoolView& pool, double distance, double sigma_target) const {
-  if (visible_count_ == 0 || !(distance > 0.0)) return 0.0;
-  std::vector<Eigen::Vector3d> precise;
-  for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
-    if (pool.is_alive(i) && primitive_sigma(pool[i]) < sigma_target && pool[i].X_world.allFinite()) {
-      precise.push_back(pool[i].X_world);
-    }
-  }
-  return covered_fraction(precise, distance);
-}
-
-double GroundTruth::verified_coverage(const PrimitivePoolView& pool, double distance, double sigma_target,
-                                      double max_sigmas, std::size_t* precise_count,
-                                      std::size_t* verified_count) const {
+std::vector<PrimitiveIndex> GroundTruth::precise_primitives(const PrimitivePoolView& pool, double sigma_target) {
   std::vector<PrimitiveIndex> precise;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (pool.is_alive(i) && primitive_sigma(pool[i]) < sigma_target && pool[i].X_world.allFinite()) {
       precise.push_back(i);
     }
   }
+  return precise;
+}
+
+double GroundTruth::coverage(const PrimitivePoolView& pool, double distance, double sigma_target) const {
+  if (visible_count_ == 0 || !(distance > 0.0)) return 0.0;
+  std::vector<Eigen::Vector3d> points;
+  for (const PrimitiveIndex i : precise_primitives(pool, sigma_target)) points.push_back(pool[i].X_world);
+  return covered_fraction(points, distance);
+}
+
+double GroundTruth::verified_coverage(const PrimitivePoolView& pool, double distance, double sigma_target,
+                                      double max_sigmas, std::size_t* precise_count,
+                                      std::size_t* verified_count) const {
+  const std::vector<PrimitiveIndex> precise = precise_primitives(pool, sigma_target);
   std::vector<std::uint8_t> within(precise.size(), 0);
   parallel_for(precise.size(), config_.threads, [&](std::size_t k) {
     const Primitive& p = pool[precise[k]];
@@ -229,7 +230,6 @@ double GroundTruth::verified_coverage(const PrimitivePoolView& pool, double dist
   }
   if (precise_count != nullptr) *precise_count = precise.size();
   if (verified_count != nullptr) *verified_count = verified.size();
-  if (visible_count_ == 0 || !(distance > 0.0)) return 0.0;
   return covered_fraction(verified, distance);
 }
 

@@ -93,6 +93,8 @@ class GroundTruth {
   Evaluation evaluate(const PrimitivePoolView& pool) const;
 
  private:
+  // The alive primitives with a finite position and sigma < sigma_target, in index order ((c) and (f)).
+  static std::vector<PrimitiveIndex> precise_primitives(const PrimitivePoolView& pool, double sigma_target);
   // The share of visible samples within distance of one of the points (the grid search of (c)).
   double covered_fraction(const std::vector<Eigen::Vector3d>& points, double distance) const;
 
