@@ -437,6 +437,12 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
   double sums[4] = {0.0, 0.0, 0.0, 0.0};  // white, white + floor, correlated, correlated + floor
   double tails[4] = {0.0, 0.0, 0.0, 0.0};
   int count = 0;
+  // White + floor by the surface's tilt in views[0] (the angle between its normal and the line of sight):
+  // foreshortening, apart from the surface's shape (core/frontend/EXPERIMENTS.md, session 20).
+  constexpr double kTiltEdgesDeg[] = {20.0, 40.0, 55.0, 70.0};
+  constexpr int kTiltBins = 5;
+  double tilt_sums[kTiltBins] = {};
+  int tilt_counts[kTiltBins] = {};
   const int stride = config.seed_stride_px;
   for (int y = stride / 2; y < k.height_px; y += stride) {
     for (int x = stride / 2; x < k.width_px; x += stride) {
@@ -477,6 +483,12 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
         sums[m] += nees / 2.0;
         tails[m] += nees > kChi2Dof2Q99 ? 1.0 : 0.0;
       }
+      const double cos_tilt = std::min(1.0, n.dot((scene.views[0].position_world - X).normalized()));
+      const double tilt_deg = std::acos(cos_tilt) * 180.0 / M_PI;
+      int bin = 0;
+      while (bin < kTiltBins - 1 && tilt_deg >= kTiltEdgesDeg[bin]) ++bin;
+      tilt_sums[bin] += e.dot(covariances[1].inverse() * e) / 2.0;
+      ++tilt_counts[bin];
       ++count;
     }
   }
@@ -485,6 +497,12 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
               "white + floor %.2f (%.3f), correlated %.2f (%.3f), correlated + floor %.2f (%.3f)\n",
               scene.name, j, count, sums[0] / count, tails[0] / count, sums[1] / count, tails[1] / count,
               sums[2] / count, tails[2] / count, sums[3] / count, tails[3] / count);
+  std::printf("%s, matches view 0 -> %zu, white + floor by the surface's tilt in view 0:", scene.name, j);
+  const char* const labels[kTiltBins] = {"< 20", "20-40", "40-55", "55-70", ">= 70"};
+  for (int b = 0; b < kTiltBins; ++b) {
+    if (tilt_counts[b] > 0) std::printf(" %s deg %.2f (N=%d)", labels[b], tilt_sums[b] / tilt_counts[b], tilt_counts[b]);
+  }
+  std::printf("\n");
 }
 
 // The tracker's configuration: the default, or with masked templates matched by warping the image
@@ -541,32 +559,52 @@ sim::SceneConfig textured_scene(Resolution resolution) {
   return config;
 }
 
-// The plane x = 0, 80 x 80 units, facing +x, seen on an arc of views (small-baseline pair first).
-std::unique_ptr<SceneRun> make_plane_run(Resolution resolution, Matcher matcher) {
+// How far the plane is turned about the vertical axis away from the first view: facing it (the brief's
+// plane), or 45 / 60 degrees, where every patch is seen obliquely as most of the bunny's are.
+enum class PlaneTilt { kFacing, k45Degrees, k60Degrees };
+constexpr int kPlaneTilts = 3;
+double tilt_degrees(PlaneTilt tilt) {
+  return tilt == PlaneTilt::kFacing ? 0.0 : tilt == PlaneTilt::k45Degrees ? 45.0 : 60.0;
+}
+const char* plane_name(Resolution resolution, PlaneTilt tilt) {
+  static const char* const names[2][kPlaneTilts] = {
+      {"plane", "plane tilted 45 degrees", "plane tilted 60 degrees"},
+      {"plane at 640x480", "plane tilted 45 degrees at 640x480", "plane tilted 60 degrees at 640x480"}};
+  return names[static_cast<int>(resolution)][static_cast<int>(tilt)];
+}
+
+// The plane through the origin, 80 x 80 units, facing +x turned by the tilt about +z, seen on an arc of
+// views (small-baseline pair first).
+std::unique_ptr<SceneRun> make_plane_run(Resolution resolution, Matcher matcher, PlaneTilt tilt) {
+  const double angle = tilt_degrees(tilt) * M_PI / 180.0;
+  const Eigen::Vector3d normal(std::cos(angle), std::sin(angle), 0.0);
+  // (0, y, z) of the facing plane, turned with it.
+  const auto corner = [angle](float y, float z) {
+    return Eigen::Vector3f(static_cast<float>(-y * std::sin(angle)), static_cast<float>(y * std::cos(angle)), z);
+  };
   sim::TriangleMesh mesh;
-  mesh.vertices = {Eigen::Vector3f(0, -40, -40), Eigen::Vector3f(0, 40, -40), Eigen::Vector3f(0, 40, 40),
-                   Eigen::Vector3f(0, -40, 40)};
+  mesh.vertices = {corner(-40, -40), corner(40, -40), corner(40, 40), corner(-40, 40)};
   mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
   const sim::SceneConfig scene_config = textured_scene(resolution);
   const sim::SimWorld world(scene_config, mesh);
   Scene scene;
-  scene.name = resolution == Resolution::kVga ? "plane at 640x480" : "plane";
+  scene.name = plane_name(resolution, tilt);
   scene.config = &scene_config;
   scene.world = &world;
   const double azimuths[] = {0.0, 1.5, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0};
   const double elevations[] = {0.0, 0.0, 2.0, -2.0, 4.0, 0.0, 3.0, -3.0};
   for (int i = 0; i < 8; ++i) scene.views.push_back(orbit_view(40.0, azimuths[i], elevations[i]));
   const PinholeIntrinsics k = scene_config.intrinsics;
-  scene.true_point = [k](const Eigen::Vector2d& seed, const Viewpoint& view, Eigen::Vector3d* X) {
+  scene.true_point = [k, normal](const Eigen::Vector2d& seed, const Viewpoint& view, Eigen::Vector3d* X) {
     const Eigen::Vector3d ray = back_project_ray_world(seed, view, k);
-    if (!(std::abs(ray.x()) > 1e-9)) return false;
-    const double t = -view.position_world.x() / ray.x();
+    if (!(std::abs(normal.dot(ray)) > 1e-9)) return false;
+    const double t = -normal.dot(view.position_world) / normal.dot(ray);
     *X = view.position_world + t * ray;
     return t > 0.0;
   };
-  scene.surface_distance = [](const Eigen::Vector3d& X) { return std::abs(X.x()); };
-  scene.true_normal = [](const Eigen::Vector2d&, const Viewpoint&, Eigen::Vector3d* n) {
-    *n = Eigen::Vector3d::UnitX();
+  scene.surface_distance = [normal](const Eigen::Vector3d& X) { return std::abs(normal.dot(X)); };
+  scene.true_normal = [normal](const Eigen::Vector2d&, const Viewpoint&, Eigen::Vector3d* n) {
+    *n = normal;
     return true;
   };
   return std::make_unique<SceneRun>(run_scene(scene, matcher));
@@ -608,10 +646,11 @@ std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution, Matcher matcher)
 }
 
 // Each scene runs once per test binary, resolution and matcher, on first use.
-const SceneRun& plane_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault) {
-  static std::unique_ptr<SceneRun> runs[2][2];
-  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)];
-  if (!run) run = make_plane_run(resolution, matcher);
+const SceneRun& plane_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault,
+                          PlaneTilt tilt = PlaneTilt::kFacing) {
+  static std::unique_ptr<SceneRun> runs[2][2][kPlaneTilts];
+  std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)][static_cast<int>(tilt)];
+  if (!run) run = make_plane_run(resolution, matcher, tilt);
   return *run;
 }
 const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault) {
@@ -694,6 +733,28 @@ TEST_CASE("at 640x480, front end NEES on the bunny lies in the 95% chi-square ba
 // The oracle at 640x480: the estimator stays consistent, so what the front end loses there is its matches'.
 TEST_CASE("at 640x480, the oracle's iterated EKF without a gate is consistent (plane and bunny)", "[.][vga]") {
   check_oracle_consistent(Resolution::kVga);
+}
+
+// The plane turned 45 and 60 degrees away from the first view (hidden: `integration_tests "[oblique]"`, 4 s
+// in Release): every patch is foreshortened, as most of the bunny's are, on a surface without shape. Per
+// match its excess grows with the tilt as the bunny's does (core/frontend/EXPERIMENTS.md, session 20), so
+// the band is KNOWN TO FAIL here too; the accuracy and match rate are checked as on the facing plane.
+TEST_CASE("on a plane tilted 45 and 60 degrees, the front end stays accurate", "[.][oblique]") {
+  for (PlaneTilt tilt : {PlaneTilt::k45Degrees, PlaneTilt::k60Degrees}) {
+    const SceneRun& run = plane_run(Resolution::kHalfVga, Matcher::kDefault, tilt);
+    REQUIRE(run.all.primitives > 500);
+    CHECK(run.all.match_rate > 0.85);
+    CHECK(run.tracked.rms_error < 0.06);
+  }
+}
+
+TEST_CASE("on a plane tilted 45 and 60 degrees, front end NEES lies in the 95% chi-square band",
+          "[.][oblique][!shouldfail]") {
+  for (PlaneTilt tilt : {PlaneTilt::k45Degrees, PlaneTilt::k60Degrees}) {
+    for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+      check_plane_nees_in_band(plane_run(resolution, Matcher::kDefault, tilt));
+    }
+  }
 }
 
 // With masked templates matched by warping the image (hidden: `integration_tests "[inverse-warp]"`, 6 s in
