@@ -899,24 +899,38 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       if (count != n && count != 2 * n && count != 4 * n && count != 8 * n) continue;
       const double spacing = config_.seed_stride_px * cell_depth_[cell] / focal;
       // Only neighbours known to a fraction of their spacing say anything about the plane.
-      fit_normal(cell_primitive_[cell], cx, cy, 0.25 * spacing, 3.0 * spacing, view.position_world, pool);
+      fit_normal(cell_primitive_[cell], cx, cy, spacing, 0.25 * spacing, view.position_world, false, pool);
     }
   }
 }
 
-void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma,
-                               double max_distance, const Eigen::Vector3d& camera_world, PrimitivePoolView& pool) {
+void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
+                               const Eigen::Vector3d& camera_world, bool along_rays, PrimitivePoolView& pool) {
   Primitive& p = pool[i];
   std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours> neighbours;
   std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours> sigmas;
   const std::size_t used = neighbour_positions(cx, cy, pool, max_sigma, &neighbours, &sigmas);
-  PlaneFitConfig fit;
-  fit.max_neighbour_distance = max_distance;
   Eigen::Vector3f normal;
   double tilt_variance = 0.0;
-  if (!fit_plane_normal(p.X_world, p.Sigma_world, Span<const Eigen::Vector3d>(neighbours.data(), used),
-                        Span<const Eigen::Matrix3d>(sigmas.data(), used), camera_world, fit, &normal, &tilt_variance)) {
-    return;
+  const Span<const Eigen::Vector3d> points(neighbours.data(), used);
+  const Span<const Eigen::Matrix3d> covariances(sigmas.data(), used);
+  if (along_rays) {
+    // Depth edges are the chi^2 test's to find: the distance only bounds where the ring's farthest cell
+    // can lie on a surface seen at up to 75 degrees incidence (footprint_radius's limit).
+    constexpr double kCos75Degrees = 0.2588190451;
+    RayPlaneFitConfig fit;
+    fit.max_neighbour_distance = config_.normal_fit_ring_cells * std::sqrt(2.0) * spacing / kCos75Degrees;
+    if (!fit_plane_normal_along_rays(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal,
+                                     &tilt_variance)) {
+      return;
+    }
+  } else {
+    // Farther neighbours lie across a depth edge.
+    PlaneFitConfig fit;
+    fit.max_neighbour_distance = 3.0 * spacing;
+    if (!fit_plane_normal(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal, &tilt_variance)) {
+      return;
+    }
   }
   // A fit from noisy neighbours can know less than the normal already has: keep the better one.
   if (config_.model_normal_uncertainty && !(tilt_variance < normal_tilt_variance(i))) return;
@@ -1113,13 +1127,18 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
     }
   }
   // Normals of the new primitives from their neighbours (new or tracked), then radii for the incidence.
+  // With the fit along the rays the radius stays the facing footprint: tracking marks a primitive's disc
+  // as a circle of its radius in the image, so a radius stretched by 1 / cos(incidence) would cover the
+  // neighbouring cells and keep them from spawning (EXPERIMENTS.md, "Session 21").
+  const bool along_rays = config_.spawn_normal_fit_along_rays;
   for (std::int32_t cy = 0; cy < cells_y_; ++cy) {
     for (std::int32_t cx = 0; cx < cells_x_; ++cx) {
       const std::size_t cell = static_cast<std::size_t>(cy) * cells_x_ + cx;
       if ((cell_state_[cell] & kCellSpawned) == 0) continue;
       const PrimitiveIndex i = cell_primitive_[cell];
-      fit_normal(i, cx, cy, std::numeric_limits<double>::infinity(), 3.0 * stride * cell_depth_[cell] / focal,
-                 reference_view.position_world, pool);
+      fit_normal(i, cx, cy, stride * cell_depth_[cell] / focal, std::numeric_limits<double>::infinity(),
+                 reference_view.position_world, along_rays, pool);
+      if (along_rays) continue;
       Primitive& p = pool[i];
       const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();
       p.radius = static_cast<float>(

@@ -184,6 +184,14 @@ struct FrontEndConfig {
   // normals more than 20 degrees off, and they held half its NEES excess (EXPERIMENTS.md, "The normal fit's
   // neighbourhood (session 12)").
   std::int32_t normal_fit_ring_cells = 2;
+  // A new primitive's normal from its neighbours fitted along the spawn camera's rays
+  // (fit_plane_normal_along_rays, core/frontend/surface_fit.hpp): the neighbours' depth errors weighted
+  // by their variances and a noisy plane accepted by its chi^2, with a tilt variance to match; its radius
+  // stays the facing footprint. Off: the scatter fit (fit_plane_normal), which refuses any neighbourhood
+  // whose depth scatter is not thin against its spread (at 640x480 most new normals stayed on the facing
+  // prior), and a radius stretched by the incidence. Refits of tracked primitives use the scatter fit
+  // either way: their errors no longer lie along one camera's rays (EXPERIMENTS.md, "Session 21").
+  bool spawn_normal_fit_along_rays = true;
   // Adaptive scale (see README): neighbours in the image merge when both have at least
   // merge_min_observations updates and sqrt(trace Sigma) <= merge_max_sigma, normals within
   // merge_max_normal_angle_deg, the other's centre within merge_plane_sigmas standard deviations of the
@@ -420,10 +428,12 @@ class ImageFrontEnd final : public MeasurementSource {
   std::size_t neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool, double max_sigma,
                                   std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours>* out,
                                   std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours>* sigmas = nullptr) const;
-  // Refits primitive i's normal from the neighbours of cell (cx, cy); keeps the fit when its tilt variance
-  // is below the current one. The camera orients the normal.
-  void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double max_sigma, double max_distance,
-                  const Eigen::Vector3d& camera_world, PrimitivePoolView& pool);
+  // Refits primitive i's normal from the neighbours of cell (cx, cy) (spacing: the cells' spacing at its
+  // depth, scene units; max_sigma: the neighbours' largest sigma_bound); keeps the fit when its tilt
+  // variance is below the current one. The camera orients the normal; along_rays picks
+  // fit_plane_normal_along_rays (the neighbours' errors along that camera's rays), else fit_plane_normal.
+  void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
+                  const Eigen::Vector3d& camera_world, bool along_rays, PrimitivePoolView& pool);
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,

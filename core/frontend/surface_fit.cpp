@@ -1,8 +1,11 @@
 #include "core/frontend/surface_fit.hpp"
 
+#include <array>
 #include <cmath>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 
 namespace vantage {
 
@@ -50,7 +53,123 @@ bool fit_plane(const Eigen::Vector3d& centre, const Eigen::Matrix3d* centre_Sigm
   return true;
 }
 
+// The plane q . X' = 1 through points X' = X - camera, fitted along the camera's rays: point k lies on
+// its ray r_k (unit) at distance t_k, and the plane puts it at 1 / (q . r_k). With the error along the
+// ray (a new primitive's depth), y_k = 1 / t_k is the noisy response and r_k an exact regressor, so the
+// weighted least squares in q is linear and unbiased to first order; var(y_k) = (r_k^T Sigma_k r_k) / t_k^4.
+struct RayPlaneFit {
+  Eigen::Vector3d q = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();  // sum_k w_k r_k r_k^T
+  double chi2 = 0.0;
+};
+
+struct RayPoint {
+  Eigen::Vector3d ray = Eigen::Vector3d::Zero();
+  double inverse_distance = 0.0;
+  double weight = 0.0;
+};
+
+bool ray_point(const Eigen::Vector3d& X, const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& camera, RayPoint* out) {
+  const Eigen::Vector3d offset = X - camera;
+  const double t = offset.norm();
+  if (!(t > 0.0) || !std::isfinite(t)) return false;
+  out->ray = offset / t;
+  out->inverse_distance = 1.0 / t;
+  const double variance_t = out->ray.dot(Sigma * out->ray);
+  const double variance_y = variance_t / (t * t * t * t);
+  if (!(variance_y > 0.0) || !std::isfinite(variance_y)) return false;
+  out->weight = 1.0 / variance_y;
+  return true;
+}
+
+bool ray_plane_fit(const RayPoint* points, const bool* used, std::size_t count, RayPlaneFit* fit) {
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!used[k]) continue;
+    information += points[k].weight * points[k].ray * points[k].ray.transpose();
+    moment += points[k].weight * points[k].inverse_distance * points[k].ray;
+  }
+  const Eigen::LDLT<Eigen::Matrix3d> solver(information);
+  if (solver.info() != Eigen::Success || !solver.isPositive()) return false;
+  fit->q = solver.solve(moment);
+  if (!fit->q.allFinite() || !(fit->q.norm() > 0.0)) return false;
+  fit->information = information;
+  fit->chi2 = 0.0;
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!used[k]) continue;
+    const double r = points[k].inverse_distance - fit->q.dot(points[k].ray);
+    fit->chi2 += points[k].weight * r * r;
+  }
+  return std::isfinite(fit->chi2);
+}
+
 }  // namespace
+
+bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
+                               Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
+                               const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
+                               Eigen::Vector3f* normal, double* tilt_variance) {
+  if (neighbour_Sigmas.size() != neighbours.size() || !centre.allFinite() || !centre_Sigma.allFinite()) return false;
+  // The centre first (never dropped: the fit is for its normal), then the neighbours in reach.
+  std::array<RayPoint, kMaxRayPlaneFitPoints> points;
+  std::array<bool, kMaxRayPlaneFitPoints> used{};
+  if (!ray_point(centre, centre_Sigma, camera_world, &points[0])) return false;
+  used[0] = true;
+  std::size_t count = 1;
+  for (std::size_t k = 0; k < neighbours.size(); ++k) {
+    const Eigen::Vector3d& X = neighbours[k];
+    if (!X.allFinite() || !neighbour_Sigmas[k].allFinite() || !((X - centre).norm() <= config.max_neighbour_distance)) {
+      continue;
+    }
+    if (count == kMaxRayPlaneFitPoints) return false;
+    if (!ray_point(X, neighbour_Sigmas[k], camera_world, &points[count])) continue;
+    used[count] = true;
+    ++count;
+  }
+  std::size_t in_fit = count;
+  if (in_fit < config.min_neighbours + 1) return false;
+  RayPlaneFit fit;
+  std::size_t dropped = 0;
+  for (;;) {
+    if (!ray_plane_fit(points.data(), used.data(), count, &fit)) return false;
+    const double dof = static_cast<double>(in_fit) - 3.0;
+    if (dof > 0.0 && fit.chi2 <= config.max_chi2_per_dof * dof) break;
+    if (dropped == config.max_dropped || in_fit == config.min_neighbours + 1) return false;
+    // The neighbour the plane explains worst leaves the fit.
+    std::size_t worst = 0;
+    double worst_residual = -1.0;
+    for (std::size_t k = 1; k < count; ++k) {
+      if (!used[k]) continue;
+      const double r = points[k].inverse_distance - fit.q.dot(points[k].ray);
+      if (points[k].weight * r * r > worst_residual) {
+        worst_residual = points[k].weight * r * r;
+        worst = k;
+      }
+    }
+    if (worst == 0) return false;
+    used[worst] = false;
+    --in_fit;
+    ++dropped;
+  }
+  // n = q / |q|: its covariance J Cov(q) J^T with J = (I - n n^T) / |q|, Cov(q) the inverse information
+  // scaled by chi^2 / dof when the residuals exceed the points' own noise (curvature counts like noise).
+  const double dof = static_cast<double>(in_fit) - 3.0;
+  const double scale = fit.chi2 / dof > 1.0 ? fit.chi2 / dof : 1.0;
+  const double q_norm = fit.q.norm();
+  Eigen::Vector3d n = fit.q / q_norm;
+  const Eigen::Matrix3d J = (Eigen::Matrix3d::Identity() - n * n.transpose()) / q_norm;
+  const Eigen::Matrix3d covariance = scale * J * fit.information.inverse() * J.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(0.5 * (covariance + covariance.transpose()),
+                                                               Eigen::EigenvaluesOnly);
+  if (eigen.info() != Eigen::Success) return false;
+  const double variance = eigen.eigenvalues()(2);
+  if (!(variance > 0.0) || !std::isfinite(variance) || !n.allFinite()) return false;
+  if (n.dot(camera_world - centre) < 0.0) n = -n;
+  *normal = n.cast<float>();
+  *tilt_variance = variance;
+  return true;
+}
 
 bool fit_plane_normal(const Eigen::Vector3d& centre, Span<const Eigen::Vector3d> neighbours,
                       const Eigen::Vector3d& camera_world, const PlaneFitConfig& config, Eigen::Vector3f* normal) {

@@ -30,6 +30,31 @@ bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& cent
                       const Eigen::Vector3d& camera_world, const PlaneFitConfig& config, Eigen::Vector3f* normal,
                       double* tilt_variance);
 
+// The plane fit for points whose errors lie along the rays from camera_world (a new primitive's depth
+// error is many times its lateral one, and grows with depth): the plane q . (X - camera) = 1 fitted to
+// the inverse distances along the points' rays by weighted least squares, each weighted by its variance
+// along its ray (r^T Sigma r); a lateral error is taken as none. The rays are then exact regressors, so
+// the fit is linear and its covariance honest, where an eigenvector fit of the scatter is tilted by
+// noise that is not along the normal. Its chi^2 (count - 3 dof) tells a plane from a depth edge or a
+// scatter: above max_chi2_per_dof, the neighbour with the largest weighted residual is dropped and the
+// fit repeated, up to max_dropped times; still above, false. *tilt_variance is the largest eigenvalue
+// of the unit normal's covariance, scaled by chi^2 / dof when that exceeds 1 (curvature counts like
+// noise). Unlike fit_plane_normal's scatter-ratio test, a noisy but planar neighbourhood gives a normal
+// with a large variance instead of none. False (outputs untouched) with fewer than min_neighbours
+// neighbours within max_neighbour_distance, more than kMaxRayPlaneFitPoints points, or a singular fit.
+struct RayPlaneFitConfig {
+  std::size_t min_neighbours = 3;
+  double max_neighbour_distance = 1.0;  // scene units
+  double max_chi2_per_dof = 4.0;
+  std::size_t max_dropped = 4;
+};
+inline constexpr std::size_t kMaxRayPlaneFitPoints = 64;  // centre included
+
+bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
+                               Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
+                               const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
+                               Eigen::Vector3f* normal, double* tilt_variance);
+
 // Radius of the disc that covers one stride x stride pixel cell at camera depth depth, on a plane whose
 // normal makes angle acos(cos_incidence) with the viewing ray (incidence clamped at 75 degrees).
 double footprint_radius(double stride_px, double depth, double focal_px, double cos_incidence);

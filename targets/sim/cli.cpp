@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <string>
 #include <unistd.h>
 
 #include "core/planning/planner_policy.hpp"
@@ -89,6 +90,13 @@ int run_cli(int argc, const char* const* argv) {
                  "image front end: the NCC an inverse-warp match must reach (with --inverse-warp-masked)")
       ->check(CLI::Range(0.01, 0.999))
       ->capture_default_str();
+  // rays / scatter, mapped onto the bool after parsing.
+  std::string spawn_normal_fit = options.spawn_normal_fit_along_rays ? "rays" : "scatter";
+  app.add_option("--spawn-normal-fit", spawn_normal_fit,
+                 "image front end: a new primitive's normal from its neighbours, fitted along the spawn camera's "
+                 "rays (rays) or by the scatter's smallest axis (scatter)")
+      ->check(CLI::IsMember({"rays", "scatter"}))
+      ->capture_default_str();
   app.add_flag("--presmooth", options.presmooth,
                "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
   app.add_option("--match-floor-rad", options.match_sigma_floor_rad,
@@ -134,6 +142,7 @@ int run_cli(int argc, const char* const* argv) {
     return 1;
   }
   options.live = !quiet;
+  options.spawn_normal_fit_along_rays = spawn_normal_fit == "rays";
   options.measurement = measurement == "oracle" ? MeasurementKind::kOracle : MeasurementKind::kImage;
   if (options.gate_diagnostics && options.measurement != MeasurementKind::kImage) {
     // The diagnostics classify the image front end's matches; the oracle's observations are ground truth.

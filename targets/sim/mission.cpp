@@ -213,6 +213,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.erase_unsearchable = !options.keep_unsearchable;
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.presmooth = options.presmooth;
+    fc.spawn_normal_fit_along_rays = options.spawn_normal_fit_along_rays;
     fc.inverse_warp_masked = options.inverse_warp_masked;
     fc.inverse_warp_ncc_min = static_cast<float>(options.inverse_warp_ncc_min);
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;

@@ -40,6 +40,9 @@ struct MissionOptions {
   // Image front end: FrontEndConfig::presmooth (the 3x3 binomial low-pass of every frame) and
   // match_sigma_floor_rad (the floor added in quadrature to every match's standard deviation, as an angle).
   bool presmooth = FrontEndConfig{}.presmooth;
+  // Image front end: FrontEndConfig::spawn_normal_fit_along_rays (a new primitive's normal fitted along the
+  // spawn camera's rays; false: the scatter fit).
+  bool spawn_normal_fit_along_rays = FrontEndConfig{}.spawn_normal_fit_along_rays;
   // Image front end: FrontEndConfig::inverse_warp_masked (masked templates matched by warping the image).
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
   double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;  // FrontEndConfig::inverse_warp_ncc_min

