@@ -107,9 +107,9 @@ bool ray_plane_fit(const RayPoint* points, const bool* used, std::size_t count, 
 }  // namespace
 
 bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
-                               Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
-                               const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
-                               Eigen::Vector3f* normal, double* tilt_variance) {
+                                 Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
+                                 const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
+                                 Eigen::Vector3f* normal, double* tilt_variance) {
   if (neighbour_Sigmas.size() != neighbours.size() || !centre.allFinite() || !centre_Sigma.allFinite()) return false;
   // The centre first (never dropped: the fit is for its normal), then the neighbours in reach.
   std::array<RayPoint, kMaxRayPlaneFitPoints> points;

@@ -41,9 +41,10 @@ bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& cent
 // of the unit normal's covariance, scaled by chi^2 / dof when that exceeds 1 (curvature counts like
 // noise). Unlike fit_plane_normal's scatter-ratio test, a noisy but planar neighbourhood gives a normal
 // with a large variance instead of none. False (outputs untouched) with fewer than min_neighbours
-// neighbours within max_neighbour_distance, more than kMaxRayPlaneFitPoints points, or a singular fit.
+// neighbours within max_neighbour_distance, more than kMaxRayPlaneFitPoints points, a neighbour_Sigmas
+// count other than the neighbours', a non-finite centre, or a singular fit.
 struct RayPlaneFitConfig {
-  std::size_t min_neighbours = 3;
+  std::size_t min_neighbours = 3;  // besides the centre
   double max_neighbour_distance = 1.0;  // scene units
   double max_chi2_per_dof = 4.0;
   std::size_t max_dropped = 4;
@@ -51,9 +52,9 @@ struct RayPlaneFitConfig {
 inline constexpr std::size_t kMaxRayPlaneFitPoints = 64;  // centre included
 
 bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
-                               Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
-                               const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
-                               Eigen::Vector3f* normal, double* tilt_variance);
+                                 Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
+                                 const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
+                                 Eigen::Vector3f* normal, double* tilt_variance);
 
 // Radius of the disc that covers one stride x stride pixel cell at camera depth depth, on a plane whose
 // normal makes angle acos(cos_incidence) with the viewing ray (incidence clamped at 75 degrees).
