@@ -148,6 +148,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.depth_max = m.depth_max_m > 0.0 ? m.depth_max_m : derived.max_m;
   fc.inverse_warp_masked = m.inverse_warp_masked;
   fc.inverse_warp_ncc_min = static_cast<float>(m.inverse_warp_ncc_min);
+  fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

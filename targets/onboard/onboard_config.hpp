@@ -50,6 +50,9 @@ struct MissionSettings {
   // FrontEndConfig::inverse_warp_ncc_min: the NCC such a match must reach (a signal-to-noise threshold,
   // so it depends on the camera and the scene's texture).
   double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;
+  // FrontEndConfig::spawn_normal_fit_along_rays: a new primitive's normal fitted along the spawn camera's
+  // rays (false: the scatter fit of sessions before 21).
+  bool spawn_normal_fit_along_rays = FrontEndConfig{}.spawn_normal_fit_along_rays;
 };
 
 struct OnboardConfig {

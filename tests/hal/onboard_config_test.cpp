@@ -48,6 +48,7 @@ mission:
   max_images: 120
   inverse_warp_masked: true
   inverse_warp_ncc_min: 0.95
+  spawn_normal_fit_along_rays: false
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -68,10 +69,12 @@ mission:
   CHECK(c.mission.max_images == 120u);
   CHECK(c.mission.inverse_warp_masked);
   CHECK(c.mission.inverse_warp_ncc_min == 0.95);
+  CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
   CHECK(defaults.mission.inverse_warp_ncc_min == FrontEndConfig{}.inverse_warp_ncc_min);
+  CHECK(defaults.mission.spawn_normal_fit_along_rays);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -97,6 +100,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  depth_min_m: -1\n").find("onboard.yaml: mission.depth_min_m: ") == 0);
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_masked: sometimes\n") ==
         "onboard.yaml: mission.inverse_warp_masked: must be true or false");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  spawn_normal_fit_along_rays: 1.5\n") ==
+        "onboard.yaml: mission.spawn_normal_fit_along_rays: must be true or false");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==
         "onboard.yaml: mission.inverse_warp_ncc_min: 1 is outside [0.01, 0.999]");
   CHECK(error_for("camera: [unclosed\n").find("onboard.yaml: line ") == 0);
