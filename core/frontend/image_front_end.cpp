@@ -917,9 +917,9 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
   if (along_rays) {
     // Depth edges are the chi^2 test's to find: the distance only bounds where the ring's farthest cell
     // can lie on a surface seen at up to 75 degrees incidence (footprint_radius's limit).
-    constexpr double kCos75Degrees = 0.2588190451;
     RayPlaneFitConfig fit;
-    fit.max_neighbour_distance = config_.normal_fit_ring_cells * std::sqrt(2.0) * spacing / kCos75Degrees;
+    fit.max_neighbour_distance =
+        config_.normal_fit_ring_cells * std::sqrt(2.0) * spacing / kFootprintMinCosIncidence;
     if (!fit_plane_normal_along_rays(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal,
                                      &tilt_variance)) {
       return;

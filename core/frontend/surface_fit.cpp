@@ -185,8 +185,8 @@ bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& cent
 }
 
 double footprint_radius(double stride_px, double depth, double focal_px, double cos_incidence) {
-  constexpr double kMinCos = 0.2588190451;  // cos 75 degrees
-  const double c = std::abs(cos_incidence) < kMinCos ? kMinCos : std::abs(cos_incidence);
+  const double c = std::abs(cos_incidence) < kFootprintMinCosIncidence ? kFootprintMinCosIncidence
+                                                                        : std::abs(cos_incidence);
   // Half the cell diagonal on a fronto-parallel plane, stretched by the incidence.
   return 0.5 * std::sqrt(2.0) * stride_px * depth / focal_px / c;
 }

@@ -56,8 +56,12 @@ bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Mat
                                  const Eigen::Vector3d& camera_world, const RayPlaneFitConfig& config,
                                  Eigen::Vector3f* normal, double* tilt_variance);
 
+// The steepest incidence a footprint is stretched for: cos 75 degrees.
+inline constexpr double kFootprintMinCosIncidence = 0.2588190451;
+
 // Radius of the disc that covers one stride x stride pixel cell at camera depth depth, on a plane whose
-// normal makes angle acos(cos_incidence) with the viewing ray (incidence clamped at 75 degrees).
+// normal makes angle acos(cos_incidence) with the viewing ray (incidence clamped at 75 degrees,
+// kFootprintMinCosIncidence).
 double footprint_radius(double stride_px, double depth, double focal_px, double cos_incidence);
 
 }  // namespace vantage
