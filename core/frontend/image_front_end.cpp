@@ -160,7 +160,7 @@ Status FrontEndConfig::validate() const {
                            min_image_stddev_gray, max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
-                           direct_fit_max_px, confirm_min_depth_information};
+                           direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -184,6 +184,9 @@ Status FrontEndConfig::validate() const {
   if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!(confirm_min_depth_information >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
+  if (!(epipolar_guard_fraction >= 0.0 && epipolar_guard_fraction <= kMaxEpipolarGuardFraction)) {
+    return Status::kInvalidArgument;
+  }
   if (!finite_positive(max_initial_sigma) || !(warp_min_deviation >= 0.0)) return Status::kInvalidArgument;
   if (!(min_facing_cos > -1.0 && min_facing_cos < 1.0)) return Status::kInvalidArgument;
   if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
@@ -811,7 +814,8 @@ void ImageFrontEnd::count_track_failure(bool template_usable, MatchOutcome outco
     case MatchOutcome::kAmbiguous: ++f.ambiguous; break;
     case MatchOutcome::kNoSubpixel: ++f.no_subpixel; break;
     case MatchOutcome::kNoRoom: ++f.no_room; break;
-    case MatchOutcome::kMatched: break;  // not a failure: never passed
+    case MatchOutcome::kMatched: break;           // not a failure: never passed
+    case MatchOutcome::kBeyondDepthRange: break;  // the epipolar search's only, never the window's
   }
 }
 
@@ -1054,6 +1058,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
   query.second = other_view;
   query.depth_min = config_.depth_min;
   query.depth_max = config_.depth_max;
+  query.guard_fraction = config_.epipolar_guard_fraction;
   TwoViewObservation observation;
   observation.view_a = reference_view;
   observation.view_b = other_view;
@@ -1077,8 +1082,10 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       Eigen::Vector2d matched_px;
       float best = 0.0f;
       Eigen::Matrix2d fit_covariance;
-      if (search_epipolar(other, tmpl, query, intrinsics_, match, ncc_scratch, xy_scratch, &matched_px, &best,
-                          &fit_covariance) != MatchOutcome::kMatched) {
+      const MatchOutcome outcome = search_epipolar(other, tmpl, query, intrinsics_, match, ncc_scratch, xy_scratch,
+                                                   &matched_px, &best, &fit_covariance);
+      if (outcome != MatchOutcome::kMatched) {
+        if (outcome == MatchOutcome::kBeyondDepthRange) ++stats_.seeds_beyond_depth_range;
         continue;
       }
       ++stats_.seeds_matched;

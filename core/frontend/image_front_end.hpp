@@ -37,6 +37,8 @@ inline constexpr std::size_t kFrontEndMaxCells =
 inline constexpr std::size_t kFrontEndMaxViews = 1024;
 inline constexpr std::int32_t kFrontEndMaxHalfWindow = 24;
 inline constexpr std::size_t kFrontEndMaxEpipolarSamples = 2048;
+// The largest FrontEndConfig::epipolar_guard_fraction: the guard holds at most 16 knots a range length.
+inline constexpr double kMaxEpipolarGuardFraction = 4.0;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 // A normal's local plane fit reads the cells within this many of its own (FrontEndConfig::normal_fit_ring_cells).
@@ -73,6 +75,11 @@ struct FrontEndConfig {
   // it (EXPERIMENTS.md, "Why tracked matches fail"). The missions derive theirs from the grid.
   double depth_min = 25.0;
   double depth_max = 55.0;
+  // The epipolar search looks this fraction of the range's inverse-depth span past both of its ends (the
+  // far side at most to infinity) and spawns nothing when the best peak lies there, so a surface beyond
+  // the range is not spawned at a wrong depth inside it (EpipolarQuery::guard_fraction; EXPERIMENTS.md,
+  // "Session 22"). 0: the range alone, as before.
+  double epipolar_guard_fraction = 0.25;
   // The Mahalanobis gate of the EKF, and the fixed image measurement covariance R (px^2). R sizes the
   // search windows; it is also each match's R when adaptive_R is off.
   EkfConfig ekf;
@@ -256,6 +263,7 @@ struct FrontEndStats {
   std::uint64_t seeds_tried = 0;              // textured seeds searched along an epipolar line
   std::uint64_t seeds_matched = 0;
   std::uint64_t seeds_rejected_triangulation = 0;
+  std::uint64_t seeds_beyond_depth_range = 0;  // best epipolar peak in the guard band (kBeyondDepthRange)
   std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
   std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
   std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable

@@ -311,25 +311,51 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
                              Eigen::Matrix2d* covariance_px2) {
   *best_ncc = -2.0f;
   if (!(query.depth_min > 0.0) || !(query.depth_max > query.depth_min)) return MatchOutcome::kNoRoom;
+  if (std::isnan(query.guard_fraction)) return MatchOutcome::kNoRoom;
   const Eigen::Vector3d ray = back_project_ray_world(query.uv_first_px, query.first, intrinsics);
   const double ray_z = ray.dot(query.first.R_world_cam.col(2));
   if (!(ray_z > 0.0)) return MatchOutcome::kNoRoom;
   // Knots uniform in inverse depth, joined by straight pieces: exact without distortion, close with it.
+  // The range's own pieces first as knots 0..kKnots-1 (near to far), the guard's on either side with
+  // about the same spacing; the far guard stops short of infinity, where the ray's point is not finite.
   constexpr int kKnots = 16;
+  const double inverse_near = 1.0 / query.depth_min;
+  const double inverse_far = 1.0 / query.depth_max;
+  const double span = inverse_near - inverse_far;
+  const double guard = query.guard_fraction > 0.0 ? query.guard_fraction * span : 0.0;
+  const double far_guard = guard < inverse_far * (1.0 - 1e-3) ? guard : inverse_far * (1.0 - 1e-3);
+  const double near_knots = guard > 0.0 ? std::ceil((kKnots - 1) * guard / span) : 0.0;
+  const double far_knots = far_guard > 0.0 ? std::ceil((kKnots - 1) * far_guard / span) : 0.0;
+  if (!(near_knots <= 16 * kKnots && far_knots <= 16 * kKnots)) return MatchOutcome::kNoRoom;  // huge
+  const int near_pieces = static_cast<int>(near_knots);
+  const int far_pieces = static_cast<int>(far_knots);
+  auto inverse_depth_of = [&](int k) {  // k in [-near_pieces, kKnots - 1 + far_pieces]
+    if (k < 0) return inverse_near + guard * (static_cast<double>(-k) / near_pieces);
+    if (k >= kKnots) return inverse_far - far_guard * (static_cast<double>(k - (kKnots - 1)) / far_pieces);
+    const double s = static_cast<double>(k) / (kKnots - 1);
+    return (1.0 - s) / query.depth_min + s / query.depth_max;
+  };
   const std::size_t capacity = scratch_ncc.size() < scratch_xy.size() / 2 ? scratch_ncc.size() : scratch_xy.size() / 2;
   std::size_t count = 0;
+  std::size_t range_begin = 0;  // samples [range_begin, range_end) are the range's, the rest the guard's
+  std::size_t range_end = 0;
   std::int32_t last_x = -1;
   std::int32_t last_y = -1;
   bool have_previous = false;  // the first knot has no piece before it
   Eigen::Vector2d previous_px = Eigen::Vector2d::Zero();
-  for (int k = 0; k < kKnots; ++k) {
-    const double s = static_cast<double>(k) / (kKnots - 1);
-    const double inverse_depth = (1.0 - s) / query.depth_min + s / query.depth_max;
+  for (int k = -near_pieces; k < kKnots + far_pieces; ++k) {
+    // The piece that ends at knot k belongs to the range when both its knots do; the guard's pieces
+    // are cut where they leave the image or the second camera's front.
+    const bool in_range = k > 0 && k < kKnots;
+    if (k == 1) range_begin = count;
+    const double inverse_depth = inverse_depth_of(k);
     const Eigen::Vector3d X = query.first.position_world + ray * (1.0 / inverse_depth / ray_z);
     Eigen::Vector2d px;
     if (!ok(project(X, query.second, intrinsics, &px)) || !px.allFinite() ||
         std::abs(px.x()) > 1e6 || std::abs(px.y()) > 1e6) {
-      return MatchOutcome::kNoRoom;  // part of the depth range behind the second camera
+      if (k >= 0 && k < kKnots) return MatchOutcome::kNoRoom;  // part of the depth range behind the second camera
+      have_previous = false;
+      continue;
     }
     if (have_previous) {
       const Eigen::Vector2d step = px - previous_px;
@@ -341,7 +367,10 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
         if (x == last_x && y == last_y) continue;
         // A depth range that leaves the image may hold the true match where it cannot be searched: then
         // the best in-image peak proves nothing, so the seed is not matched at all.
-        if (!patch_inside(second_image, x, y, 1)) return MatchOutcome::kNoRoom;
+        if (!patch_inside(second_image, x, y, 1)) {
+          if (in_range) return MatchOutcome::kNoRoom;
+          continue;
+        }
         if (count == capacity) return MatchOutcome::kNoRoom;
         scratch_xy[2 * count] = x;
         scratch_xy[2 * count + 1] = y;
@@ -351,12 +380,15 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
         last_y = y;
       }
     }
+    if (k == kKnots - 1) range_end = count;
     previous_px = px;
     have_previous = true;
   }
+  if (near_pieces == 0) range_begin = 0;
+  if (far_pieces == 0) range_end = count;
   if (count < 3) return MatchOutcome::kNoRoom;
-  // Interior local maxima of the sequence; the ends are not candidates (a peak there may lie beyond the
-  // depth range).
+  // Interior local maxima of the sequence; its ends are not candidates (a peak there may lie beyond what
+  // was searched).
   float best = -2.0f;
   std::size_t best_i = 0;
   for (std::size_t i = 1; i + 1 < count; ++i) {
@@ -368,6 +400,7 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   }
   *best_ncc = best;
   if (best < config.ncc_min) return MatchOutcome::kBelowThreshold;
+  if (best_i < range_begin || best_i >= range_end) return MatchOutcome::kBeyondDepthRange;
   const std::int32_t seq_x = scratch_xy[2 * best_i];
   const std::int32_t seq_y = scratch_xy[2 * best_i + 1];
   for (std::size_t i = 1; i + 1 < count; ++i) {

@@ -22,6 +22,7 @@ enum class MatchOutcome : std::uint8_t {
   kAmbiguous,       // a second local maximum within uniqueness_ratio of the best
   kNoRoom,          // the search region left the image or outgrew the scratch space
   kNoSubpixel,      // the photometric refinement did not converge within a pixel of the peak
+  kBeyondDepthRange,  // epipolar only: the best peak lies in the guard band past the depth range
 };
 
 struct MatchConfig {
@@ -86,12 +87,18 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
 // (z along first's optical axis, scene units) projects to a segment (a curve under distortion) in the
 // second image; every integer pixel on it is a candidate. When part of the range projects outside the
 // second image (or behind it) the search gives kNoRoom: the true match could be where it cannot look.
+// The guard band: the segment goes on past both ends by guard_fraction of the range's inverse-depth
+// span (the far side at most to infinity), as far as it stays in the image. Its peaks compete for
+// uniqueness, and a best peak there gives kBeyondDepthRange: a surface beyond the range then yields no
+// primitive instead of one at the best wrong depth inside it (EXPERIMENTS.md, "Session 22").
 struct EpipolarQuery {
   Eigen::Vector2d uv_first_px = Eigen::Vector2d::Zero();
   Viewpoint first;
   Viewpoint second;
   double depth_min = 1.0;
   double depth_max = 100.0;
+  double guard_fraction = 0.0;  // >= 0 (a negative one is none); NaN, or so large the guard needs more than
+                                // 256 knots a side: kNoRoom
 };
 
 MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplate& tmpl, const EpipolarQuery& query,

@@ -21,4 +21,13 @@ std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std
   return line;
 }
 
+std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uint64_t beyond_depth_range) {
+  if (tried == 0) return "seeding: no seed searched";
+  const double share = 100.0 / static_cast<double>(tried);
+  char line[160];
+  std::snprintf(line, sizeof line, "seeding: %llu seeds searched, %.1f%% matched, %.1f%% past the depth range",
+                static_cast<unsigned long long>(tried), share * matched, share * beyond_depth_range);
+  return line;
+}
+
 }  // namespace vantage::targets

@@ -12,4 +12,8 @@ namespace vantage::targets {
 std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std::uint64_t inverse_warped,
                              const TrackFailureCounts& failures);
 
+// "seeding: N seeds searched, x% matched, y% past the depth range" (no newline); a large last share says
+// the configured depth range misses much of the scene. "seeding: no seed searched" for 0.
+std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uint64_t beyond_depth_range);
+
 }  // namespace vantage::targets

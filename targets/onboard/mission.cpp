@@ -149,6 +149,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.inverse_warp_masked = m.inverse_warp_masked;
   fc.inverse_warp_ncc_min = static_cast<float>(m.inverse_warp_ncc_min);
   fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
+  fc.epipolar_guard_fraction = m.epipolar_guard_fraction;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;
@@ -252,6 +253,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   const FrontEndStats& tracked = g_front_end.stats();
   std::printf("%s\n", targets::tracking_summary(tracked.tracks_predicted, tracked.tracks_matched,
                                                        tracked.tracks_inverse_warped, tracked.track_failures).c_str());
+  std::printf("%s\n", targets::seeding_summary(tracked.seeds_tried, tracked.seeds_matched,
+                                                      tracked.seeds_beyond_depth_range).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {
     *summary = std::string("mission done: ") + to_string(last.done) + ", " + std::to_string(g_executive.images()) +

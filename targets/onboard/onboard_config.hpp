@@ -53,6 +53,9 @@ struct MissionSettings {
   // FrontEndConfig::spawn_normal_fit_along_rays: a new primitive's normal fitted along the spawn camera's
   // rays (false: the scatter fit of sessions before 21).
   bool spawn_normal_fit_along_rays = FrontEndConfig{}.spawn_normal_fit_along_rays;
+  // FrontEndConfig::epipolar_guard_fraction: how far past the depth range a new primitive's epipolar
+  // search looks (a fraction of the range's inverse-depth span; a surface found there spawns nothing).
+  double epipolar_guard_fraction = FrontEndConfig{}.epipolar_guard_fraction;
 };
 
 struct OnboardConfig {

@@ -90,6 +90,11 @@ int run_cli(int argc, const char* const* argv) {
                  "image front end: the NCC an inverse-warp match must reach (with --inverse-warp-masked)")
       ->check(CLI::Range(0.01, 0.999))
       ->capture_default_str();
+  app.add_option("--epipolar-guard", options.epipolar_guard_fraction,
+                 "image front end: how far past the depth range a new primitive's epipolar search looks, as a "
+                 "fraction of the range's inverse-depth span (a best peak there spawns nothing; 0: off)")
+      ->check(CLI::Range(0.0, vantage::kMaxEpipolarGuardFraction))
+      ->capture_default_str();
   // rays / scatter, mapped onto the bool after parsing.
   std::string spawn_normal_fit = options.spawn_normal_fit_along_rays ? "rays" : "scatter";
   app.add_option("--spawn-normal-fit", spawn_normal_fit,
@@ -205,6 +210,8 @@ int run_cli(int argc, const char* const* argv) {
       if (summary.measurement == to_string(MeasurementKind::kImage)) {
         std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched,
                                                    summary.tracks_inverse_warped, summary.track_failures) << "\n";
+        std::cout << "  " << targets::seeding_summary(summary.seeds_tried, summary.seeds_matched,
+                                                  summary.seeds_beyond_depth_range) << "\n";
       }
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;

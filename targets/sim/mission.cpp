@@ -214,6 +214,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.direct_fit_max_px = options.direct_fit_max_px;
     fc.presmooth = options.presmooth;
     fc.spawn_normal_fit_along_rays = options.spawn_normal_fit_along_rays;
+    fc.epipolar_guard_fraction = options.epipolar_guard_fraction;
     fc.inverse_warp_masked = options.inverse_warp_masked;
     fc.inverse_warp_ncc_min = static_cast<float>(options.inverse_warp_ncc_min);
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
@@ -392,6 +393,9 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     summary.tracks_matched = fs.tracks_matched;
     summary.tracks_inverse_warped = fs.tracks_inverse_warped;
     summary.track_failures = fs.track_failures;
+    summary.seeds_tried = fs.seeds_tried;
+    summary.seeds_matched = fs.seeds_matched;
+    summary.seeds_beyond_depth_range = fs.seeds_beyond_depth_range;
   }
   summary.unreachable_nbv = g_executive.unreachable_nbv_count();
   summary.split_fallbacks = g_executive.split_fallback_count();

@@ -94,6 +94,11 @@ struct MissionSummary {
   std::uint64_t tracks_matched = 0;
   std::uint64_t tracks_inverse_warped = 0;  // of the matched: by the inverse warp (--inverse-warp-masked)
   TrackFailureCounts track_failures;
+  // Its seeds: searched along an epipolar line, matched, and refused because the best peak lay past the
+  // depth range (FrontEndConfig::epipolar_guard_fraction).
+  std::uint64_t seeds_tried = 0;
+  std::uint64_t seeds_matched = 0;
+  std::uint64_t seeds_beyond_depth_range = 0;
 };
 
 }  // namespace vantage::simtarget

@@ -604,6 +604,13 @@ TEST_CASE("configure refuses cameras beyond the buffers and out-of-range setting
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
   bad.direct_fit_max_px = std::nan("");
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  bad = FrontEndConfig{};
+  bad.epipolar_guard_fraction = -0.1;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.epipolar_guard_fraction = kMaxEpipolarGuardFraction * 1.01;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.epipolar_guard_fraction = std::nan("");
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
   CHECK_FALSE(g_front_end.configured());
 }
 

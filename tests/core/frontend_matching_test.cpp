@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -480,17 +481,36 @@ TEST_CASE("a window search rejects a periodic texture as ambiguous and a flat im
                       &best) == MatchOutcome::kBelowThreshold);
 }
 
-TEST_CASE("an epipolar search within the depth range finds the true correspondence on a textured plane") {
-  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+namespace {
+
+// The epipolar tests' scene: the test plane at depth 40 in the first view, seen again from 2 units aside.
+struct EpipolarPair {
+  PinholeIntrinsics k = vantage::test::small_intrinsics();
   TexturedPlane plane;
-  const Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
-  const Viewpoint second = vantage::test::looking_at_origin({39.9, 2.0, 0.3});
+  Viewpoint first = vantage::test::looking_at_origin({40.0, 0.0, 0.0});
+  Viewpoint second = vantage::test::looking_at_origin({39.9, 2.0, 0.3});
   std::vector<std::uint8_t> a;
   std::vector<std::uint8_t> b;
-  vantage::test::render_plane(plane, first, k, &a);
-  vantage::test::render_plane(plane, second, k, &b);
-  const GrayImageView image_a = vantage::test::view_of(a, k);
-  const GrayImageView image_b = vantage::test::view_of(b, k);
+
+  explicit EpipolarPair(double feature_size = TexturedPlane{}.feature_size) {
+    plane.feature_size = feature_size;
+    vantage::test::render_plane(plane, first, k, &a);
+    vantage::test::render_plane(plane, second, k, &b);
+  }
+  GrayImageView image_a() const { return vantage::test::view_of(a, k); }
+  GrayImageView image_b() const { return vantage::test::view_of(b, k); }
+};
+
+}  // namespace
+
+TEST_CASE("an epipolar search within the depth range finds the true correspondence on a textured plane") {
+  const EpipolarPair pair;
+  const PinholeIntrinsics& k = pair.k;
+  const TexturedPlane& plane = pair.plane;
+  const Viewpoint& first = pair.first;
+  const Viewpoint& second = pair.second;
+  const GrayImageView image_a = pair.image_a();
+  const GrayImageView image_b = pair.image_b();
   std::array<float, 512> ncc{};
   std::array<std::int32_t, 1024> xy{};
   int matched = 0;
@@ -525,6 +545,125 @@ TEST_CASE("an epipolar search within the depth range finds the true corresponden
   REQUIRE(tried > 50);
   CHECK(matched > 0.8 * tried);
   CHECK(std::sqrt(sum_sq / matched) < 0.15);
+}
+
+namespace {
+
+struct EpipolarTally {
+  int tried = 0;
+  int matched = 0;
+  int beyond = 0;
+  int matched_within_1px = 0;
+};
+
+// Every textured seed of the first view of the test plane (depth about 40) searched along its epipolar
+// line in the second view over [depth_min, depth_max] with the given guard fraction.
+EpipolarTally tally_epipolar(double depth_min, double depth_max, double guard_fraction, double feature_size) {
+  const EpipolarPair pair(feature_size);
+  const PinholeIntrinsics& k = pair.k;
+  const Viewpoint& first = pair.first;
+  const Viewpoint& second = pair.second;
+  const GrayImageView image_a = pair.image_a();
+  const GrayImageView image_b = pair.image_b();
+  MatchConfig config;
+  config.ncc_min = 0.9f;  // the front end's spawn threshold
+  std::array<float, 1024> ncc{};
+  std::array<std::int32_t, 2048> xy{};
+  EpipolarTally tally;
+  for (std::int32_t y = 20; y < 100; y += 5) {
+    for (std::int32_t x = 20; x < 140; x += 5) {
+      NccTemplate tmpl;
+      if (!textured_template(image_a, x, y, &tmpl)) continue;
+      ++tally.tried;
+      EpipolarQuery query;
+      query.uv_first_px = Eigen::Vector2d(x, y);
+      query.first = first;
+      query.second = second;
+      query.depth_min = depth_min;
+      query.depth_max = depth_max;
+      query.guard_fraction = guard_fraction;
+      Eigen::Vector2d found;
+      float best = 0.0f;
+      MatchOutcome outcome = MatchOutcome::kNoRoom;
+      REQUIRE_NO_ALLOCATION(outcome = search_epipolar(image_b, tmpl, query, k, config,
+                                                      Span<float>(ncc.data(), ncc.size()),
+                                                      Span<std::int32_t>(xy.data(), xy.size()), &found, &best));
+      if (outcome == MatchOutcome::kBeyondDepthRange) ++tally.beyond;
+      if (outcome != MatchOutcome::kMatched) continue;
+      ++tally.matched;
+      Eigen::Vector3d X;
+      REQUIRE(pair.plane.intersect(query.uv_first_px, first, k, &X));
+      Eigen::Vector2d truth;
+      REQUIRE(ok(project(X, second, k, &truth)));
+      if ((found - truth).norm() < 1.0) ++tally.matched_within_1px;
+    }
+  }
+  return tally;
+}
+
+}  // namespace
+
+TEST_CASE("an epipolar search's guard band keeps a surface beyond the depth range from being matched inside it") {
+  // A smooth texture (3-unit features, about 11 px), whose broad NCC peaks let a range that misses the
+  // surface hold a best peak of its own; the plane lies at depth 40 in the first view.
+  constexpr double kFeature = 3.0;
+  // Searched over its true range, the guard changes nothing that matters.
+  const EpipolarTally in_range = tally_epipolar(25.0, 55.0, 0.0, kFeature);
+  const EpipolarTally in_range_guarded = tally_epipolar(25.0, 55.0, 0.5, kFeature);
+  REQUIRE(in_range.tried > 200);
+  CHECK(in_range.matched_within_1px > 0.9 * in_range.tried);
+  CHECK(in_range_guarded.matched_within_1px >= in_range.matched_within_1px - in_range.tried / 50);
+  CHECK(in_range_guarded.matched == in_range_guarded.matched_within_1px);
+  CHECK(in_range_guarded.beyond == 0);
+  // A range that ends before the surface (far side) or begins behind it (near side): with the guard the
+  // true peak is found past the range and the seed is not matched; without it the range's own best peak
+  // can be taken, off the truth.
+  for (const auto& range : {std::pair<double, double>{20.0, 32.0}, std::pair<double, double>{50.0, 80.0}}) {
+    INFO("depth range " << range.first << ".." << range.second);
+    const EpipolarTally unguarded = tally_epipolar(range.first, range.second, 0.0, kFeature);
+    const EpipolarTally guarded = tally_epipolar(range.first, range.second, 1.0, kFeature);
+    CHECK(unguarded.beyond == 0);
+    CHECK(guarded.matched - guarded.matched_within_1px == 0);
+    CHECK(guarded.matched - guarded.matched_within_1px <= unguarded.matched - unguarded.matched_within_1px);
+    CHECK(guarded.beyond > 0.75 * guarded.tried);
+  }
+}
+
+TEST_CASE("an epipolar search rejects a guard fraction that is not a number, and without a guard is unchanged") {
+  // NaN and huge guards are refused outright (kNoRoom), never searched.
+  const EpipolarPair pair;
+  const PinholeIntrinsics& k = pair.k;
+  const Viewpoint& first = pair.first;
+  const Viewpoint& second = pair.second;
+  NccTemplate tmpl;
+  REQUIRE(textured_template(pair.image_a(), 60, 60, &tmpl));
+  std::array<float, 1024> ncc{};
+  std::array<std::int32_t, 2048> xy{};
+  EpipolarQuery query;
+  query.uv_first_px = Eigen::Vector2d(60, 60);
+  query.first = first;
+  query.second = second;
+  query.depth_min = 25.0;
+  query.depth_max = 55.0;
+  Eigen::Vector2d found;
+  float best = 0.0f;
+  for (double guard : {std::numeric_limits<double>::quiet_NaN(), 1e9}) {
+    query.guard_fraction = guard;
+    CHECK(search_epipolar(pair.image_b(), tmpl, query, k, MatchConfig{},
+                          Span<float>(ncc.data(), ncc.size()), Span<std::int32_t>(xy.data(), xy.size()), &found,
+                          &best) == MatchOutcome::kNoRoom);
+  }
+  // A negative guard is none.
+  query.guard_fraction = -1.0;
+  Eigen::Vector2d with_negative;
+  REQUIRE(search_epipolar(pair.image_b(), tmpl, query, k, MatchConfig{},
+                          Span<float>(ncc.data(), ncc.size()), Span<std::int32_t>(xy.data(), xy.size()),
+                          &with_negative, &best) == MatchOutcome::kMatched);
+  query.guard_fraction = 0.0;
+  REQUIRE(search_epipolar(pair.image_b(), tmpl, query, k, MatchConfig{},
+                          Span<float>(ncc.data(), ncc.size()), Span<std::int32_t>(xy.data(), xy.size()), &found,
+                          &best) == MatchOutcome::kMatched);
+  CHECK(found == with_negative);
 }
 
 namespace {

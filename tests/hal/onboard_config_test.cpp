@@ -49,6 +49,7 @@ mission:
   inverse_warp_masked: true
   inverse_warp_ncc_min: 0.95
   spawn_normal_fit_along_rays: false
+  epipolar_guard_fraction: 1.5
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -70,11 +71,13 @@ mission:
   CHECK(c.mission.inverse_warp_masked);
   CHECK(c.mission.inverse_warp_ncc_min == 0.95);
   CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
+  CHECK(c.mission.epipolar_guard_fraction == 1.5);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
   CHECK(defaults.mission.inverse_warp_ncc_min == FrontEndConfig{}.inverse_warp_ncc_min);
   CHECK(defaults.mission.spawn_normal_fit_along_rays);
+  CHECK(defaults.mission.epipolar_guard_fraction == FrontEndConfig{}.epipolar_guard_fraction);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -102,6 +105,10 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.inverse_warp_masked: must be true or false");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  spawn_normal_fit_along_rays: 1.5\n") ==
         "onboard.yaml: mission.spawn_normal_fit_along_rays: must be true or false");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: -0.5\n") ==
+        "onboard.yaml: mission.epipolar_guard_fraction: -0.5 is outside [0, 4]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
+        "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==
         "onboard.yaml: mission.inverse_warp_ncc_min: 1 is outside [0.01, 0.999]");
   CHECK(error_for("camera: [unclosed\n").find("onboard.yaml: line ") == 0);

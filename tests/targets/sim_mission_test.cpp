@@ -146,5 +146,14 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(predicted > 1000);
   CHECK(matched > predicted / 2);
   CHECK(matched + failed == predicted);
+  // Its seeds: the default range holds the scene, so few if any are refused for lying past it.
+  const long long tried = json_count(summary, "seeds_tried");
+  const long long seeded = json_count(summary, "seeds_matched");
+  const long long beyond = json_count(summary, "seeds_beyond_depth_range");
+  CHECK(tried > 1000);
+  CHECK(seeded > tried / 4);
+  CHECK(beyond >= 0);
+  CHECK(seeded + beyond <= tried);
+  CHECK(beyond < tried / 20);
   fs::remove_all(out);
 }
