@@ -337,7 +337,9 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
   };
   const std::size_t capacity = scratch_ncc.size() < scratch_xy.size() / 2 ? scratch_ncc.size() : scratch_xy.size() / 2;
   std::size_t count = 0;
-  std::size_t range_begin = 0;  // samples [range_begin, range_end) are the range's, the rest the guard's
+  // Samples [range_begin, range_end) are the range's, the rest the guard's (set at knots 1 and kKnots - 1,
+  // which the loop always reaches: a range knot that fails returns).
+  std::size_t range_begin = 0;
   std::size_t range_end = 0;
   std::int32_t last_x = -1;
   std::int32_t last_y = -1;
@@ -384,8 +386,6 @@ MatchOutcome search_epipolar(const GrayImageView& second_image, const NccTemplat
     previous_px = px;
     have_previous = true;
   }
-  if (near_pieces == 0) range_begin = 0;
-  if (far_pieces == 0) range_end = count;
   if (count < 3) return MatchOutcome::kNoRoom;
   // Interior local maxima of the sequence; its ends are not candidates (a peak there may lie beyond what
   // was searched).

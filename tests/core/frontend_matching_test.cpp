@@ -499,6 +499,18 @@ struct EpipolarPair {
   }
   GrayImageView image_a() const { return vantage::test::view_of(a, k); }
   GrayImageView image_b() const { return vantage::test::view_of(b, k); }
+  // The search for first-view pixel (x, y) in the second view over [depth_min, depth_max].
+  EpipolarQuery query(std::int32_t x, std::int32_t y, double depth_min, double depth_max,
+                      double guard_fraction = 0.0) const {
+    EpipolarQuery q;
+    q.uv_first_px = Eigen::Vector2d(x, y);
+    q.first = first;
+    q.second = second;
+    q.depth_min = depth_min;
+    q.depth_max = depth_max;
+    q.guard_fraction = guard_fraction;
+    return q;
+  }
 };
 
 }  // namespace
@@ -521,12 +533,7 @@ TEST_CASE("an epipolar search within the depth range finds the true corresponden
       NccTemplate tmpl;
       if (!textured_template(image_a, x, y, &tmpl)) continue;
       ++tried;
-      EpipolarQuery query;
-      query.uv_first_px = Eigen::Vector2d(x, y);
-      query.first = first;
-      query.second = second;
-      query.depth_min = 25.0;
-      query.depth_max = 55.0;
+      const EpipolarQuery query = pair.query(x, y, 25.0, 55.0);
       Eigen::Vector2d found;
       float best = 0.0f;
       MatchOutcome outcome = MatchOutcome::kNoRoom;
@@ -575,13 +582,7 @@ EpipolarTally tally_epipolar(double depth_min, double depth_max, double guard_fr
       NccTemplate tmpl;
       if (!textured_template(image_a, x, y, &tmpl)) continue;
       ++tally.tried;
-      EpipolarQuery query;
-      query.uv_first_px = Eigen::Vector2d(x, y);
-      query.first = first;
-      query.second = second;
-      query.depth_min = depth_min;
-      query.depth_max = depth_max;
-      query.guard_fraction = guard_fraction;
+      const EpipolarQuery query = pair.query(x, y, depth_min, depth_max, guard_fraction);
       Eigen::Vector2d found;
       float best = 0.0f;
       MatchOutcome outcome = MatchOutcome::kNoRoom;
@@ -633,18 +634,11 @@ TEST_CASE("an epipolar search rejects a guard fraction that is not a number, and
   // NaN and huge guards are refused outright (kNoRoom), never searched.
   const EpipolarPair pair;
   const PinholeIntrinsics& k = pair.k;
-  const Viewpoint& first = pair.first;
-  const Viewpoint& second = pair.second;
   NccTemplate tmpl;
   REQUIRE(textured_template(pair.image_a(), 60, 60, &tmpl));
   std::array<float, 1024> ncc{};
   std::array<std::int32_t, 2048> xy{};
-  EpipolarQuery query;
-  query.uv_first_px = Eigen::Vector2d(60, 60);
-  query.first = first;
-  query.second = second;
-  query.depth_min = 25.0;
-  query.depth_max = 55.0;
+  EpipolarQuery query = pair.query(60, 60, 25.0, 55.0);
   Eigen::Vector2d found;
   float best = 0.0f;
   for (double guard : {std::numeric_limits<double>::quiet_NaN(), 1e9}) {
