@@ -603,6 +603,12 @@ Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObse
   seen.view = view;
   seen.creating_view = creating;
   seen.inverse_warped = inverse_warped;
+  if (observer_->refuse(seen)) {
+    seen.refused = true;
+    seen.outcome = Status::kGatedOutlier;
+    observer_->on_observation(seen);
+    return seen.outcome;
+  }
   seen.outcome = iterated_consider_update(p, common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
                                           ProjectionAtPrior{predicted, H}, &stats_.ekf);
   observer_->on_observation(seen);

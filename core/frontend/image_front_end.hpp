@@ -291,8 +291,9 @@ struct TrackedObservation {
   Eigen::Matrix2d B = Eigen::Matrix2d::Identity();           // creating-image shift -> this image
   Viewpoint view;
   Viewpoint creating_view;
-  Status outcome = Status::kOk;             // kGatedOutlier: rejected by the Mahalanobis gate
+  Status outcome = Status::kOk;             // kGatedOutlier: rejected by the Mahalanobis gate (or refused)
   bool inverse_warped = false;              // matched by warping the image (FrontEndConfig::inverse_warp_masked)
+  bool refused = false;                     // TrackObserver::refuse said no: no update was made
 };
 
 // Receives every TrackedObservation (ImageFrontEnd::set_observer). Called inside update(); it must not
@@ -300,6 +301,14 @@ struct TrackedObservation {
 class TrackObserver {
  public:
   virtual void on_observation(const TrackedObservation& observation) = 0;
+  // Asked before each update with the observation as matched (outcome not yet known): true refuses it
+  // (no update; reported with refused set and kGatedOutlier, and counted as a gated outlier). A test's
+  // ground-truth oracle uses it to measure what the filter would be without the matches it knows to be
+  // wrong (core/frontend/EXPERIMENTS.md, "Session 23"). Never set on the robot.
+  virtual bool refuse(const TrackedObservation& observation) {
+    (void)observation;
+    return false;
+  }
 
  protected:
   ~TrackObserver() = default;

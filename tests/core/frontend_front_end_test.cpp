@@ -819,15 +819,12 @@ struct CountingObserver final : TrackObserver {
   }
 };
 
-}  // namespace
-
-TEST_CASE("the track observer is shown every observation that reaches the EKF update, without allocating") {
+// Initializes on the plane, then updates from the third view with the observer shown, without allocating.
+UpdateReport update_third_view_shown(TrackObserver& observer) {
   Scene scene;
   initialize_on_plane(scene, first_view(), second_view());
   const Viewpoint third = third_view();
   const auto c = scene.render(third);
-  CountingObserver observer;
-  observer.pool = &g_pool;
   UpdateReport report;
   Status status = Status::kOk;
   {
@@ -835,12 +832,62 @@ TEST_CASE("the track observer is shown every observation that reaches the EKF up
     REQUIRE_NO_ALLOCATION(status = g_front_end.update(vantage::test::view_of(c, scene.k), third, g_pool, &report));
   }
   REQUIRE(ok(status));
+  return report;
+}
+
+}  // namespace
+
+TEST_CASE("the track observer is shown every observation that reaches the EKF update, without allocating") {
+  CountingObserver observer;
+  observer.pool = &g_pool;
+  const UpdateReport report = update_third_view_shown(observer);
   CHECK(report.updated > 100u);
   CHECK(observer.updated == report.updated);
   CHECK(observer.gated == report.gated_outliers);
   CHECK(observer.updated + observer.gated + observer.other == report.matched);
   // The prior is the state before the update (merges may have erased a few since; those count as unmoved).
   CHECK(observer.moved > 0.9 * observer.updated);
+}
+
+namespace {
+
+// Refuses every other observation it is asked about (by the primitive's index), counting what it is shown.
+struct RefusingObserver final : TrackObserver {
+  std::uint32_t asked = 0;
+  std::uint32_t refused_shown = 0;
+  std::uint32_t refused_moved = 0;  // refused observations whose primitive changed anyway
+  std::uint32_t updated = 0;
+  const PrimitivePoolView* pool = nullptr;
+  bool refuse(const TrackedObservation& o) override {
+    ++asked;
+    return o.index % 2 == 0;
+  }
+  void on_observation(const TrackedObservation& o) override {
+    if (o.refused) {
+      ++refused_shown;
+      const Primitive& now = (*pool)[o.index];
+      if (now.X_world != o.prior.X_world || now.Sigma_world != o.prior.Sigma_world ||
+          now.observation_count != o.prior.observation_count || o.outcome != Status::kGatedOutlier) {
+        ++refused_moved;
+      }
+    } else if (ok(o.outcome)) {
+      ++updated;
+    }
+  }
+};
+
+}  // namespace
+
+TEST_CASE("an observation the observer refuses updates nothing and is counted as gated") {
+  RefusingObserver observer;
+  observer.pool = &g_pool;
+  const UpdateReport report = update_third_view_shown(observer);
+  REQUIRE(observer.asked > 100u);
+  CHECK(observer.refused_shown > 0.4 * observer.asked);
+  CHECK(observer.refused_moved == 0u);
+  CHECK(observer.updated == report.updated);
+  CHECK(report.gated_outliers >= observer.refused_shown);
+  CHECK(observer.updated + report.gated_outliers <= report.matched);
 }
 
 namespace {

@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <catch2/catch.hpp>
@@ -232,6 +233,8 @@ struct SceneRun {
   // The inverse warp's accepted matches against the truth (MatchTruthObserver): mean NEES/2, count.
   double inverse_warp_match_half_nees = 0.0;
   std::size_t inverse_warp_matches = 0;
+  std::size_t refused_matches = 0;  // by the tail oracle (Matcher::kTailOracle), else 0
+  double tracked_matches = 0.0;     // the tracked views' matches (UpdateReport::matched summed)
 };
 
 // Each accepted tracked update's match against the truth: the seed ray's surface point (as the NEES
@@ -239,25 +242,28 @@ struct SceneRun {
 // C = R + B P_c B^T (the independent part and the reference patch's common error), e^T C^-1 e / 2 (1 when
 // consistent; median 0.693, 1 % above 4.605). Split by how it was matched and by the size of C, since a
 // consistent match model reads the same at every size.
+// With refuse_above_half_nees > 0 it is also an oracle that refuses, before the update, every match whose
+// NEES/2 against the truth exceeds that (4.605: beyond the chi2(2) 99 % quantile), to measure what the
+// filter's rows owe to the matches' tail (core/frontend/EXPERIMENTS.md, "Session 23").
 class MatchTruthObserver final : public TrackObserver {
  public:
-  explicit MatchTruthObserver(const Scene& scene) : scene_(scene) {}
+  explicit MatchTruthObserver(const Scene& scene, double refuse_above_half_nees = 0.0)
+      : scene_(scene), refuse_above_(refuse_above_half_nees) {}
   void on_observation(const TrackedObservation& o) override {
+    if (o.refused) ++refused_;
     if (!ok(o.outcome)) return;
-    const PinholeIntrinsics& k = g_front_end.intrinsics();
-    Eigen::Vector2d uv;
-    Eigen::Vector3d truth;
-    Eigen::Vector2d truth_px;
-    if (!ok(project(o.prior.X_world, o.creating_view, k, &uv))) return;
-    const Eigen::Vector2d seed = vantage::sim::nearest_seed_px(uv, g_front_end.config().seed_stride_px);
-    if (!scene_.true_point(seed, o.creating_view, &truth) || !ok(project(truth, o.view, k, &truth_px))) return;
-    const Eigen::Matrix2d C = o.R_px2 + o.B * o.common_covariance_px2 * o.B.transpose();
-    const Eigen::Vector2d e = o.observed_px - truth_px;
-    const double sigma_px = std::sqrt(0.5 * C.trace());
+    double half_nees = 0.0;
+    double sigma_px = 0.0;
+    if (!against_truth(o, &half_nees, &sigma_px)) return;
     const int size_class = sigma_px < 0.15 ? 0 : (sigma_px < 0.25 ? 1 : 2);
-    const double half_nees = 0.5 * e.dot(C.ldlt().solve(e));
     values_[o.inverse_warped ? kInverseWarp : size_class].push_back(half_nees);
   }
+  bool refuse(const TrackedObservation& o) override {
+    double half_nees = 0.0;
+    double sigma_px = 0.0;
+    return refuse_above_ > 0.0 && against_truth(o, &half_nees, &sigma_px) && half_nees > refuse_above_;
+  }
+  std::size_t refused() const { return refused_; }
   // The class's mean NEES/2 and count (0 and 0 when it is empty).
   double mean(int match_class, std::size_t* count) const {
     const std::vector<double>& v = values_[match_class];
@@ -287,13 +293,33 @@ class MatchTruthObserver final : public TrackObserver {
   }
 
  private:
+  // The match's NEES/2 against the seed ray's surface point projected into the view, over its covariance
+  // C = R + B P_c B^T, and C's mean standard deviation; false when the truth is not seen.
+  bool against_truth(const TrackedObservation& o, double* half_nees, double* sigma_px) const {
+    const PinholeIntrinsics& k = g_front_end.intrinsics();
+    Eigen::Vector2d uv;
+    Eigen::Vector3d truth;
+    Eigen::Vector2d truth_px;
+    if (!ok(project(o.prior.X_world, o.creating_view, k, &uv))) return false;
+    const Eigen::Vector2d seed = vantage::sim::nearest_seed_px(uv, g_front_end.config().seed_stride_px);
+    if (!scene_.true_point(seed, o.creating_view, &truth) || !ok(project(truth, o.view, k, &truth_px))) return false;
+    const Eigen::Matrix2d C = o.R_px2 + o.B * o.common_covariance_px2 * o.B.transpose();
+    const Eigen::Vector2d e = o.observed_px - truth_px;
+    *sigma_px = std::sqrt(0.5 * C.trace());
+    *half_nees = 0.5 * e.dot(C.ldlt().solve(e));
+    return true;
+  }
+
   const Scene& scene_;
+  double refuse_above_ = 0.0;
+  std::size_t refused_ = 0;
   std::vector<double> values_[4];
 };
 
 // Runs the front end over the scene's views; returns the matched and predicted totals of the updates.
-void run_front_end(const Scene& scene, const FrontEndConfig& config, double* matched, double* predicted,
-                   SceneRun* run) {
+// refuse_above_half_nees > 0: the tracked matches beyond it against the truth are refused (MatchTruthObserver).
+void run_front_end(const Scene& scene, const FrontEndConfig& config, double refuse_above_half_nees, double* matched,
+                   double* predicted, SceneRun* run) {
   sim::RaycastCameraConfig camera_config;
   camera_config.intrinsics = scene.config->intrinsics;
   camera_config.shading = scene.config->shading;
@@ -310,7 +336,7 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
   UpdateReport report;
   REQUIRE(ok(g_front_end.initialize(va.as_const(), scene.views[0], vb.as_const(), scene.views[1], g_pool, &report)));
   std::printf("  init: spawned %u\n", report.spawned);
-  MatchTruthObserver observer(scene);
+  MatchTruthObserver observer(scene, refuse_above_half_nees);
   const vantage::test::ScopedTrackObserver shown(g_front_end, observer);  // also unset when a REQUIRE throws
   *matched = 0.0;
   *predicted = 0.0;
@@ -325,6 +351,9 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double* mat
   }
   observer.print(scene.name);
   run->inverse_warp_match_half_nees = observer.mean(MatchTruthObserver::kInverseWarp, &run->inverse_warp_matches);
+  run->refused_matches = observer.refused();
+  run->tracked_matches = *matched;
+  if (refuse_above_half_nees > 0.0) std::printf("  tail oracle: refused %zu matches\n", run->refused_matches);
 }
 
 // One line per gross failure (NEES > kGrossNees), to tell their kinds apart: a seed patch across a depth
@@ -552,8 +581,11 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 }
 
 // The tracker's configuration: the default, or with masked templates matched by warping the image
-// (FrontEndConfig::inverse_warp_masked, off by default).
-enum class Matcher { kDefault, kInverseWarp };
+// (FrontEndConfig::inverse_warp_masked, off by default), or the default with the tail oracle: every tracked
+// match beyond the chi2(2) 99 % quantile against the truth refused (a diagnostic, not a configuration).
+enum class Matcher { kDefault, kInverseWarp, kTailOracle };
+constexpr int kMatchers = 3;
+constexpr double kChi2Dof2Q99Half = 4.605;  // the chi2(2) 99 % quantile over 2
 
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
@@ -561,8 +593,9 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
   double matched = 0.0;
   double predicted = 0.0;
+  const bool tail_oracle = matcher == Matcher::kTailOracle;
   std::printf("%s%s:\n", scene.name, matcher == Matcher::kInverseWarp ? " (inverse_warp_masked)" : "");
-  run_front_end(scene, config, &matched, &predicted, &out);
+  run_front_end(scene, config, tail_oracle ? kChi2Dof2Q99Half : 0.0, &matched, &predicted, &out);
   // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Where the over-confidence sits", "What
   // the split measures"): the primitives matched in every view that sees them against those that missed one.
   TrackSplit front_end_split;
@@ -619,6 +652,11 @@ const char* plane_name(Resolution resolution, PlaneTilt tilt) {
   return names[static_cast<int>(resolution)][static_cast<int>(tilt)];
 }
 
+// The tail oracle's rows carry its name, so they are not read as the default's.
+std::string scene_name(const char* scene, Matcher matcher) {
+  return std::string(scene) + (matcher == Matcher::kTailOracle ? " (tail oracle)" : "");
+}
+
 // The plane through the origin, 80 x 80 units, facing +x turned by the tilt about +z, seen on an arc of
 // views (small-baseline pair first).
 std::unique_ptr<SceneRun> make_plane_run(Resolution resolution, Matcher matcher, PlaneTilt tilt) {
@@ -634,7 +672,8 @@ std::unique_ptr<SceneRun> make_plane_run(Resolution resolution, Matcher matcher,
   const sim::SceneConfig scene_config = textured_scene(resolution);
   const sim::SimWorld world(scene_config, mesh);
   Scene scene;
-  scene.name = plane_name(resolution, tilt);
+  const std::string name = scene_name(plane_name(resolution, tilt), matcher);
+  scene.name = name.c_str();
   scene.config = &scene_config;
   scene.world = &world;
   const double azimuths[] = {0.0, 1.5, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0};
@@ -661,7 +700,8 @@ std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution, Matcher matcher)
   const sim::SceneConfig scene_config = textured_scene(resolution);
   const sim::SimWorld world(scene_config);
   Scene scene;
-  scene.name = resolution == Resolution::kVga ? "bunny at 640x480" : "bunny";
+  const std::string name = scene_name(resolution == Resolution::kVga ? "bunny at 640x480" : "bunny", matcher);
+  scene.name = name.c_str();
   scene.config = &scene_config;
   scene.world = &world;
   for (double az : {0.0, 1.5, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0}) {
@@ -694,13 +734,13 @@ std::unique_ptr<SceneRun> make_bunny_run(Resolution resolution, Matcher matcher)
 // Each scene runs once per test binary, resolution, matcher and (the plane) tilt, on first use.
 const SceneRun& plane_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault,
                           PlaneTilt tilt = PlaneTilt::kFacing) {
-  static std::unique_ptr<SceneRun> runs[2][2][kPlaneTilts];
+  static std::unique_ptr<SceneRun> runs[2][kMatchers][kPlaneTilts];
   std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)][static_cast<int>(tilt)];
   if (!run) run = make_plane_run(resolution, matcher, tilt);
   return *run;
 }
 const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga, Matcher matcher = Matcher::kDefault) {
-  static std::unique_ptr<SceneRun> runs[2][2];
+  static std::unique_ptr<SceneRun> runs[2][kMatchers];
   std::unique_ptr<SceneRun>& run = runs[static_cast<int>(resolution)][static_cast<int>(matcher)];
   if (!run) run = make_bunny_run(resolution, matcher);
   return *run;
@@ -828,6 +868,36 @@ TEST_CASE("on a plane tilted 45 and 60 degrees, front end NEES lies in the 95% c
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       check_plane_nees_in_band(plane_run(resolution, Matcher::kDefault, tilt));
     }
+  }
+}
+
+// Where the filter's over-confidence comes from (hidden: `integration_tests "[tail-oracle]"`, 7 s in Release;
+// core/frontend/EXPERIMENTS.md, "Session 23"): refusing the few tracked matches that the truth puts beyond
+// the chi2(2) 99 % quantile takes most of the bunny's excess away, and the facing plane, whose rows are in
+// or near their bands with that tail, turns conservative without it. So the bulk of the matches is modelled
+// conservatively and a tail of wrong ones makes up the difference: item 6 needs both a smaller model for
+// the bulk and a test that finds the tail, not a larger R for every match.
+TEST_CASE("refusing the matches the truth puts in the tail takes most of the bunny's over-confidence",
+          "[.][tail-oracle]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny = bunny_run(resolution, Matcher::kTailOracle);
+    const SceneRun& plane_default = plane_run(resolution);
+    const SceneRun& plane = plane_run(resolution, Matcher::kTailOracle);
+    // A tail: asked before the gate, the oracle refuses about a tenth of the bunny's matches (measured 400
+    // of 4,213 at 320x240, 1,277 of 12,585 at 640x480; the plane 306 of 15,711 and 1,663 of 49,772), most
+    // of which the gate would refuse as well: of the accepted matches the default run's tail is 4.8 % and
+    // 4.9 % on the bunny, 0.8 % and 1.3 % on the plane (EXPERIMENTS.md, "Session 23").
+    REQUIRE(bunny.tracked.primitives > 300u);
+    CHECK(bunny.refused_matches > 0u);
+    CHECK(static_cast<double>(bunny.refused_matches) < 0.15 * bunny.tracked_matches);
+    CHECK(static_cast<double>(plane.refused_matches) < 0.05 * plane.tracked_matches);
+    // Measured, tracked rows: bunny 6.009 -> 3.541 (320x240), 5.862 -> 3.581 (640x480).
+    CHECK(bunny.tracked.mean_nees < 0.7 * bunny_default.tracked.mean_nees);
+    CHECK(bunny.all.gross <= bunny_default.all.gross);
+    // Measured, all primitives: plane 2.540 -> 2.145 (320x240), 2.958 -> 2.383 (640x480; band from 2.943).
+    CHECK(plane.all.mean_nees < plane_default.all.mean_nees);
+    CHECK(plane.all.mean_nees < plane.all.band_low);
   }
 }
 
