@@ -22,6 +22,18 @@ Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv_px, double stride_px) 
                          std::round((uv_px.y() - half) / stride_px) * stride_px + half);
 }
 
+bool seed_true_point(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, std::int32_t stride_px,
+                     const Primitive& p, const Viewpoint& creating, Eigen::Vector3d* X_true) {
+  Eigen::Vector2d uv_creating;
+  if (!ok(project(p.X_world, creating, intrinsics, &uv_creating))) return false;
+  const Eigen::Vector2d seed = nearest_seed_px(uv_creating, stride_px);
+  const Eigen::Vector3d ray = back_project_ray_world(seed, creating, intrinsics);
+  const double t = scene.first_hit(creating.position_world, ray);
+  if (!std::isfinite(t)) return false;
+  *X_true = creating.position_world + t * ray;
+  return true;
+}
+
 void GateDiagnostics::on_observation(const TrackedObservation& o) {
   const bool gated = o.outcome == Status::kGatedOutlier;
   if (!gated && !ok(o.outcome)) return;
@@ -29,19 +41,11 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   b.observations += 1;
   const Primitive& p = o.prior;
   const PinholeIntrinsics& k = intrinsics_;
-  Eigen::Vector2d uv_creating;
-  if (!ok(project(p.X_world, o.creating_view, k, &uv_creating))) {
-    b.no_truth += 1;
-    return;
-  }
-  const Eigen::Vector2d seed = nearest_seed_px(uv_creating, stride_px_);
-  const Eigen::Vector3d ray = back_project_ray_world(seed, o.creating_view, k);
-  const double t = scene_.first_hit(o.creating_view.position_world, ray);
+  Eigen::Vector3d X_true;
   Eigen::Vector2d uv_true;
   Eigen::Vector2d predicted;
   Eigen::Matrix<double, 2, 3> H;
-  const Eigen::Vector3d X_true = o.creating_view.position_world + t * ray;
-  if (!std::isfinite(t) || !ok(project(X_true, o.view, k, &uv_true)) ||
+  if (!seed_true_point(scene_, k, stride_px_, p, o.creating_view, &X_true) || !ok(project(X_true, o.view, k, &uv_true)) ||
       !ok(project_with_jacobian(p.X_world, o.view, k, &predicted, &H))) {
     b.no_truth += 1;
     return;

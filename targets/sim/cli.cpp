@@ -136,6 +136,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--quiet", quiet, "no live progress line");
   app.add_flag("--gate-diagnostics", options.gate_diagnostics,
                "image front end: classify its tracked observations (gated or not) against ground truth, print a summary");
+  app.add_flag("--tail-oracle", options.tail_oracle,
+               "image front end: refuse every tracked match ground truth puts beyond the chi2(2) 99% quantile "
+               "(a diagnostic: what a perfect test for the matches' tail would buy)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -152,6 +155,15 @@ int run_cli(int argc, const char* const* argv) {
   if (options.gate_diagnostics && options.measurement != MeasurementKind::kImage) {
     // The diagnostics classify the image front end's matches; the oracle's observations are ground truth.
     std::cerr << "vantage-sim: --gate-diagnostics needs --measurement image (got " << measurement << ")\n";
+    return 1;
+  }
+  if (options.tail_oracle && options.measurement != MeasurementKind::kImage) {
+    std::cerr << "vantage-sim: --tail-oracle needs --measurement image (got " << measurement << ")\n";
+    return 1;
+  }
+  if (options.tail_oracle && options.gate_diagnostics) {
+    // The front end shows one observer; each of the two needs to see every observation.
+    std::cerr << "vantage-sim: --tail-oracle and --gate-diagnostics cannot be used together\n";
     return 1;
   }
   if (!parse_planner_policy(planner_name.c_str(), &options.planner)) {

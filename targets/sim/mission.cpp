@@ -13,6 +13,7 @@
 #include "core/planning/precision_level.hpp"
 #include "core/planning/sensing_executive.hpp"
 #include "sim_hal/ground_truth/gate_diagnostics.hpp"
+#include "sim_hal/ground_truth/tail_oracle.hpp"
 #include "sim_hal/kinematic_robot.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
@@ -196,6 +197,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   // Measurement source for this run.
   std::unique_ptr<sim::OracleMeasurementSource> oracle;
   std::unique_ptr<sim::GateDiagnostics> diagnostics;
+  std::unique_ptr<sim::TailOracle> tail_oracle;
   if (options.measurement == MeasurementKind::kOracle) {
     sim::OracleConfig oc;
     oc.intrinsics = scene.intrinsics;
@@ -226,9 +228,11 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     g_measurement.target = &g_front_end;
     if (options.gate_diagnostics) {
       diagnostics = std::make_unique<sim::GateDiagnostics>(setup.world->scene(), g_front_end, fc.seed_stride_px);
+    } else if (options.tail_oracle) {
+      tail_oracle = std::make_unique<sim::TailOracle>(setup.world->scene(), scene.intrinsics, fc.seed_stride_px);
     }
   }
-  g_front_end.set_observer(diagnostics.get());
+  g_front_end.set_observer(diagnostics ? static_cast<TrackObserver*>(diagnostics.get()) : tail_oracle.get());
   g_measurement.seconds = 0.0;
   g_pool.clear();
   g_goal.ground_truth = setup.ground_truth.get();
@@ -368,6 +372,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   summary.reached_goal = last.kind == SensingActionKind::kDone && last.done == DoneReason::kGoalsReached;
   g_front_end.set_observer(nullptr);
   if (diagnostics) diagnostics->print(stderr);
+  if (tail_oracle) tail_oracle->print(stderr);
   summary.images = g_executive.images();
   summary.nbv_iterations = g_executive.nbv_iterations();
   summary.path_length = g_executive.path_length_cells() * geo.cell_size_m;

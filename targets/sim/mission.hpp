@@ -61,6 +61,7 @@ struct MissionOptions {
   bool model_free_mask = false;        // also block cells under the model's primitives (GridDriver)
   bool live = true;                    // live progress line on stderr
   bool gate_diagnostics = false;       // image front end: classify tracked observations against ground truth
+  bool tail_oracle = false;            // image front end: refuse the matches ground truth puts in the tail
 };
 
 // The world and its ground truth, built once and shared by the runs of --compare.

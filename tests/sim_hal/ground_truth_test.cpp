@@ -18,15 +18,7 @@ GridGeometry small_grid() {
   return g;
 }
 
-PinholeIntrinsics small_intrinsics() {
-  PinholeIntrinsics k;
-  k.width_px = 160;
-  k.height_px = 120;
-  k.fx_px = k.fy_px = 140.0;
-  k.cx_px = 79.5;
-  k.cy_px = 59.5;
-  return k;
-}
+using test::small_intrinsics;
 
 PrimitivePool<8192> g_pool;  // static storage: pools are big
 

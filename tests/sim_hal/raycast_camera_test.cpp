@@ -14,15 +14,7 @@ using namespace vantage::sim;
 
 namespace {
 
-PinholeIntrinsics small_intrinsics() {
-  PinholeIntrinsics k;
-  k.width_px = 160;
-  k.height_px = 120;
-  k.fx_px = k.fy_px = 140.0;
-  k.cx_px = 79.5;
-  k.cy_px = 59.5;
-  return k;
-}
+using test::small_intrinsics;
 
 Viewpoint looking_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
   Viewpoint v;

@@ -1,5 +1,5 @@
 #pragma once
-// Small analytic meshes and scratch files for the sim_hal tests.
+// Small analytic meshes, the small camera they are seen with, and scratch files for the sim_hal tests.
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -7,11 +7,23 @@
 #include <string>
 #include <unistd.h>
 
+#include "core/geometry/pinhole_intrinsics.hpp"
 #include "sim_hal/scene/triangle_mesh.hpp"
 
 namespace vantage::sim::test {
 
 inline constexpr double kPi = 3.14159265358979323846;
+
+// A 160 x 120 camera with a 140 px focal length: quick renders and ray casts.
+inline PinholeIntrinsics small_intrinsics() {
+  PinholeIntrinsics k;
+  k.width_px = 160;
+  k.height_px = 120;
+  k.fx_px = k.fy_px = 140.0;
+  k.cx_px = 79.5;
+  k.cy_px = 59.5;
+  return k;
+}
 
 // Axis-aligned box centred at centre with the given half sizes, outward winding.
 inline TriangleMesh make_box(const Eigen::Vector3f& centre, const Eigen::Vector3f& half) {
