@@ -294,6 +294,10 @@ struct TrackedObservation {
   Status outcome = Status::kOk;             // kGatedOutlier: rejected by the Mahalanobis gate (or refused)
   bool inverse_warped = false;              // matched by warping the image (FrontEndConfig::inverse_warp_masked)
   bool refused = false;                     // TrackObserver::refuse said no: no update was made
+
+  // The match's own covariance, px^2: the independent part and the reference patch's common error in this
+  // image, R + B P_c B^T (what a match against the truth is to be judged by).
+  Eigen::Matrix2d match_covariance_px2() const { return R_px2 + B * common_covariance_px2 * B.transpose(); }
 };
 
 // Receives every TrackedObservation (ImageFrontEnd::set_observer). Called inside update(); it must not

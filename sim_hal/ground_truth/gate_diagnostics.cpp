@@ -69,7 +69,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   const double prior_nees = e.dot(p.Sigma_world.ldlt().solve(e));
   const Eigen::Vector2d prior_error = uv_true - o.predicted_px;
   const double prior_chi2 = prior_error.dot((H * p.Sigma_world * H.transpose()).inverse() * prior_error);
-  const Eigen::Matrix2d R_total = o.B * o.common_covariance_px2 * o.B.transpose() + o.R_px2;
+  const Eigen::Matrix2d R_total = o.match_covariance_px2();
   const double match_chi2 = match_error.dot(R_total.inverse() * match_error);
   const Eigen::Vector3d from_creating = (o.creating_view.position_world - X_true).normalized();
   const Eigen::Vector3d from_view = (o.view.position_world - X_true).normalized();

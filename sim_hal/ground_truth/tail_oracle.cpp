@@ -19,7 +19,7 @@ bool TailOracle::refuse(const TrackedObservation& o) {
   // A true point hidden in this view: whatever was matched, it was not that point.
   const Eigen::Vector3d to_truth = X_true - o.view.position_world;
   const bool hidden = scene_.first_hit(o.view.position_world, to_truth.normalized()) < to_truth.norm() - 0.05;
-  const Eigen::Matrix2d C = o.R_px2 + o.B * o.common_covariance_px2 * o.B.transpose();
+  const Eigen::Matrix2d C = o.match_covariance_px2();
   const Eigen::Vector2d e = o.observed_px - uv_true;
   const double half_nees = 0.5 * e.dot(C.ldlt().solve(e));
   // A covariance or match that is not finite refuses too: it states no precision to check.
