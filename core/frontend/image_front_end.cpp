@@ -972,6 +972,16 @@ double ImageFrontEnd::normal_tilt_variance(PrimitiveIndex i) const {
   return i < kFrontEndMaxPrimitives ? normal_tilt_variance_[i] : config_.facing_normal_tilt_variance;
 }
 
+Status ImageFrontEnd::adopt_normal(PrimitiveIndex i, const Eigen::Vector3d& normal_world, double tilt_variance,
+                                   PrimitivePoolView& pool) {
+  if (i >= kFrontEndMaxPrimitives || i >= pool.index_bound() || !pool.is_alive(i)) return Status::kNotFound;
+  if (!normal_world.allFinite() || !std::isfinite(tilt_variance)) return Status::kNonFiniteInput;
+  if (!(std::abs(normal_world.norm() - 1.0) <= 1e-3) || !(tilt_variance > 0.0)) return Status::kInvalidArgument;
+  pool[i].normal_world = normal_world.normalized().cast<float>();
+  set_normal_tilt_variance(i, tilt_variance);
+  return Status::kOk;
+}
+
 void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance) {
   if (i < kFrontEndMaxPrimitives) normal_tilt_variance_[i] = static_cast<float>(variance);
 }

@@ -355,6 +355,14 @@ class ImageFrontEnd final : public MeasurementSource {
   // The tilt variance (rad^2 per axis) of primitive i's normal: the facing prior, a plane fit's or a
   // photometric estimate's (README, "Normal uncertainty").
   double normal_tilt_variance(PrimitiveIndex i) const;
+  // Gives alive primitive i a normal known from elsewhere (a prior model, a range sensor, a simulator's
+  // ground truth) with its tilt variance (rad^2 per axis): the warp of its template and the normal's share
+  // of R use it from the next update on, and a plane refit or photometric estimate replaces it only when it
+  // knows the normal better, as for any normal. kNotFound: i is not alive or beyond kFrontEndMaxPrimitives
+  // (whose normals the front end does not track); kNonFiniteInput: a NaN or Inf; kInvalidArgument: a normal
+  // not of unit length (within 1e-3) or a variance not above 0. Nothing changes on error.
+  Status adopt_normal(PrimitiveIndex i, const Eigen::Vector3d& normal_world, double tilt_variance,
+                      PrimitivePoolView& pool);
 
  private:
   // Checks one frame and its pose; counts the rejection.
