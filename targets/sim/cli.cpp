@@ -139,6 +139,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--tail-oracle", options.tail_oracle,
                "image front end: refuse every tracked match ground truth puts beyond the chi2(2) 99% quantile "
                "(a diagnostic: what a perfect test for the matches' tail would buy)");
+  app.add_flag("--normal-oracle", options.normal_oracle,
+               "image front end: before each update every primitive adopts the mesh's normal at its seed (a "
+               "diagnostic: what normals as good as the truth would buy)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -159,6 +162,10 @@ int run_cli(int argc, const char* const* argv) {
   }
   if (options.tail_oracle && options.measurement != MeasurementKind::kImage) {
     std::cerr << "vantage-sim: --tail-oracle needs --measurement image (got " << measurement << ")\n";
+    return 1;
+  }
+  if (options.normal_oracle && options.measurement != MeasurementKind::kImage) {
+    std::cerr << "vantage-sim: --normal-oracle needs --measurement image (got " << measurement << ")\n";
     return 1;
   }
   if (options.tail_oracle && options.gate_diagnostics) {

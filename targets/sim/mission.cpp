@@ -13,6 +13,7 @@
 #include "core/planning/precision_level.hpp"
 #include "core/planning/sensing_executive.hpp"
 #include "sim_hal/ground_truth/gate_diagnostics.hpp"
+#include "sim_hal/ground_truth/normal_oracle.hpp"
 #include "sim_hal/ground_truth/tail_oracle.hpp"
 #include "sim_hal/kinematic_robot.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
@@ -34,6 +35,10 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 struct TimedMeasurement final : MeasurementSource {
   MeasurementSource* target = nullptr;
   double seconds = 0.0;
+  // --normal-oracle: gives the image front end's primitives the truth's normals before each update (not
+  // timed: a diagnostic's cost is no measurement's).
+  sim::NormalOracle* normal_oracle = nullptr;
+  ImageFrontEnd* front_end = nullptr;
   Status initialize(const GrayImageView& a, const Viewpoint& va, const GrayImageView& b, const Viewpoint& vb,
                     PrimitivePoolView& pool, UpdateReport* report) override {
     const auto t0 = Clock::now();
@@ -43,6 +48,7 @@ struct TimedMeasurement final : MeasurementSource {
   }
   Status update(const GrayImageView& image, const Viewpoint& view, PrimitivePoolView& pool,
                 UpdateReport* report) override {
+    if (normal_oracle != nullptr) normal_oracle->apply(*front_end, pool);
     const auto t0 = Clock::now();
     const Status s = target->update(image, view, pool, report);
     seconds += seconds_since(t0);
@@ -198,6 +204,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   std::unique_ptr<sim::OracleMeasurementSource> oracle;
   std::unique_ptr<sim::GateDiagnostics> diagnostics;
   std::unique_ptr<sim::TailOracle> tail_oracle;
+  std::unique_ptr<sim::NormalOracle> normal_oracle;
   if (options.measurement == MeasurementKind::kOracle) {
     sim::OracleConfig oc;
     oc.intrinsics = scene.intrinsics;
@@ -231,7 +238,12 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     } else if (options.tail_oracle) {
       tail_oracle = std::make_unique<sim::TailOracle>(setup.world->scene(), scene.intrinsics, fc.seed_stride_px);
     }
+    if (options.normal_oracle) {
+      normal_oracle = std::make_unique<sim::NormalOracle>(setup.world->scene(), scene.intrinsics, fc.seed_stride_px);
+    }
   }
+  g_measurement.normal_oracle = normal_oracle.get();
+  g_measurement.front_end = &g_front_end;
   g_front_end.set_observer(diagnostics ? static_cast<TrackObserver*>(diagnostics.get()) : tail_oracle.get());
   g_measurement.seconds = 0.0;
   g_pool.clear();
@@ -373,6 +385,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   g_front_end.set_observer(nullptr);
   if (diagnostics) diagnostics->print(stderr);
   if (tail_oracle) tail_oracle->print(stderr);
+  if (normal_oracle) normal_oracle->print(stderr);
+  g_measurement.normal_oracle = nullptr;
   summary.images = g_executive.images();
   summary.nbv_iterations = g_executive.nbv_iterations();
   summary.path_length = g_executive.path_length_cells() * geo.cell_size_m;

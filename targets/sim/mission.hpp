@@ -62,6 +62,7 @@ struct MissionOptions {
   bool live = true;                    // live progress line on stderr
   bool gate_diagnostics = false;       // image front end: classify tracked observations against ground truth
   bool tail_oracle = false;            // image front end: refuse the matches ground truth puts in the tail
+  bool normal_oracle = false;          // image front end: every primitive adopts the mesh's normal before each update
 };
 
 // The world and its ground truth, built once and shared by the runs of --compare.

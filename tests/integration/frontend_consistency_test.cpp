@@ -4,10 +4,12 @@
 // the fraction above the chi2(3) 99% quantile, the accuracy (RMS distance to the true surface and to the
 // true point), the match success rate, and the same for the oracle source on the same views.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,6 +21,7 @@
 #include "core/frontend/patch_warp.hpp"
 #include "core/geometry/projection.hpp"
 #include "sim_hal/ground_truth/gate_diagnostics.hpp"
+#include "sim_hal/ground_truth/normal_oracle.hpp"
 #include "sim_hal/ground_truth/tail_oracle.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
@@ -255,9 +258,20 @@ class MatchTruthObserver final : public TrackObserver {
     if (!ok(o.outcome)) return;
     double half_nees = 0.0;
     double sigma_px = 0.0;
-    if (!against_truth(o, &half_nees, &sigma_px)) return;
+    Eigen::Vector2d error_px;
+    Eigen::Vector2d along;
+    if (!against_truth(o, &half_nees, &sigma_px, &error_px, &along)) return;
     const int size_class = sigma_px < 0.15 ? 0 : (sigma_px < 0.25 ? 1 : 2);
     values_[o.inverse_warped ? kInverseWarp : size_class].push_back(half_nees);
+    if (!o.inverse_warped && half_nees <= kSplitMaxHalfNees && along.squaredNorm() > 0.0) {
+      const Eigen::Vector2d across(-along.y(), along.x());
+      const Eigen::Matrix2d common = o.B * o.common_covariance_px2 * o.B.transpose();
+      SplitSample sample;
+      sample.error_px = {error_px.dot(along), error_px.dot(across)};
+      sample.common_px2 = {along.dot(common * along), across.dot(common * across)};
+      sample.independent_px2 = {along.dot(o.R_px2 * along), across.dot(o.R_px2 * across)};
+      by_primitive_[{o.index, o.prior.creating_view}].push_back(sample);
+    }
   }
   bool refuse(const TrackedObservation& o) override {
     double half_nees = 0.0;
@@ -291,12 +305,16 @@ class MatchTruthObserver final : public TrackObserver {
                   "the 99%% quantile %.3f (0.010)\n",
                   scene, kClasses[c], v.size(), sum / v.size(), v[v.size() / 2], static_cast<double>(above) / v.size());
     }
+    print_common_split(scene);
   }
 
  private:
   // The match's NEES/2 against the seed ray's surface point projected into the view, over its covariance
-  // C = R + B P_c B^T, and C's mean standard deviation; false when the truth is not seen.
-  bool against_truth(const TrackedObservation& o, double* half_nees, double* sigma_px) const {
+  // C = R + B P_c B^T, and C's mean standard deviation; false when the truth is not seen. error_px and
+  // along (may be null): the error observed - truth, and the unit direction in which the seed ray's points
+  // move in this view (the epipolar line: where an error in depth shows; zero when that cannot be formed).
+  bool against_truth(const TrackedObservation& o, double* half_nees, double* sigma_px, Eigen::Vector2d* error_px = nullptr,
+                     Eigen::Vector2d* along = nullptr) const {
     const PinholeIntrinsics& k = g_front_end.intrinsics();
     Eigen::Vector2d uv;
     Eigen::Vector3d truth;
@@ -308,19 +326,82 @@ class MatchTruthObserver final : public TrackObserver {
     const Eigen::Vector2d e = o.observed_px - truth_px;
     *sigma_px = std::sqrt(0.5 * C.trace());
     *half_nees = 0.5 * e.dot(C.ldlt().solve(e));
+    if (error_px != nullptr) *error_px = e;
+    if (along != nullptr) {
+      // A point a unit deeper along the seed ray, projected: the direction depth errors take here.
+      Eigen::Vector2d deeper_px;
+      const Eigen::Vector3d deeper = truth + (truth - o.creating_view.position_world).normalized();
+      const bool seen = ok(project(deeper, o.view, k, &deeper_px)) && (deeper_px - truth_px).norm() > 1e-9;
+      *along = seen ? Eigen::Vector2d((deeper_px - truth_px).normalized()) : Eigen::Vector2d::Zero();
+    }
     return true;
   }
+
+  // What a primitive's accepted matches share and what they do not, along the epipolar line and across it,
+  // against what the model says (B P_c B^T, the reference patch's common error, and R): per primitive with
+  // at least 3 such matches, the mean error's square less its own sampling variance estimates the common
+  // variance and the matches' spread about their mean the independent one (method of moments). Matches
+  // beyond kSplitMaxHalfNees are left out so a few gross ones do not decide the means
+  // (core/frontend/EXPERIMENTS.md, "Session 24").
+  void print_common_split(const char* scene) const {
+    std::size_t primitives = 0;
+    double common[2] = {0.0, 0.0};
+    double independent[2] = {0.0, 0.0};
+    double common_model[2] = {0.0, 0.0};
+    double independent_model[2] = {0.0, 0.0};
+    for (const auto& entry : by_primitive_) {
+      const std::vector<SplitSample>& v = entry.second;
+      if (v.size() < 3) continue;
+      ++primitives;
+      const double n = static_cast<double>(v.size());
+      for (int axis = 0; axis < 2; ++axis) {
+        double mean = 0.0;
+        double common_sum = 0.0;
+        double independent_sum = 0.0;
+        for (const SplitSample& x : v) {
+          mean += x.error_px[axis];
+          common_sum += x.common_px2[axis];
+          independent_sum += x.independent_px2[axis];
+        }
+        mean /= n;
+        double spread = 0.0;
+        for (const SplitSample& x : v) spread += (x.error_px[axis] - mean) * (x.error_px[axis] - mean);
+        spread /= n - 1.0;
+        common[axis] += mean * mean - spread / n;
+        independent[axis] += spread;
+        common_model[axis] += common_sum / n;
+        independent_model[axis] += independent_sum / n;
+      }
+    }
+    if (primitives == 0) return;
+    const double m = static_cast<double>(primitives);
+    std::printf("%s, tracked matches against the truth, shared by a primitive's matches and not (px^2, %zu primitives "
+                "with >= 3 matches of NEES/2 <= %.0f): along the epipolar line common %.4f (modelled %.4f), independent "
+                "%.4f (modelled %.4f); across it common %.4f (modelled %.4f), independent %.4f (modelled %.4f)\n",
+                scene, primitives, kSplitMaxHalfNees, common[0] / m, common_model[0] / m, independent[0] / m,
+                independent_model[0] / m, common[1] / m, common_model[1] / m, independent[1] / m, independent_model[1] / m);
+  }
+
+  static constexpr double kSplitMaxHalfNees = 20.0;
+  struct SplitSample {
+    std::array<double, 2> error_px{};         // along the epipolar line, across it
+    std::array<double, 2> common_px2{};       // B P_c B^T on those axes
+    std::array<double, 2> independent_px2{};  // R on those axes
+  };
 
   const Scene& scene_;
   double refuse_above_ = 0.0;
   std::size_t refused_ = 0;
   std::vector<double> values_[4];
+  // Accepted window-search matches by primitive (pool slot, creating view: a slot is reused after erasure).
+  std::map<std::pair<PrimitiveIndex, std::uint32_t>, std::vector<SplitSample>> by_primitive_;
 };
 
 // Runs the front end over the scene's views; returns the matched and predicted totals of the updates.
 // refuse_above_half_nees > 0: the tracked matches beyond it against the truth are refused (MatchTruthObserver).
-void run_front_end(const Scene& scene, const FrontEndConfig& config, double refuse_above_half_nees, double* matched,
-                   double* predicted, SceneRun* run) {
+// normal_oracle: before each update every primitive adopts its seed patch's true plane normal (sim::NormalOracle).
+void run_front_end(const Scene& scene, const FrontEndConfig& config, double refuse_above_half_nees, bool normal_oracle,
+                   double* matched, double* predicted, SceneRun* run) {
   sim::RaycastCameraConfig camera_config;
   camera_config.intrinsics = scene.config->intrinsics;
   camera_config.shading = scene.config->shading;
@@ -338,11 +419,13 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double refu
   REQUIRE(ok(g_front_end.initialize(va.as_const(), scene.views[0], vb.as_const(), scene.views[1], g_pool, &report)));
   std::printf("  init: spawned %u\n", report.spawned);
   MatchTruthObserver observer(scene, refuse_above_half_nees);
+  sim::NormalOracle normals(scene.world->scene(), k, config.seed_stride_px);
   const vantage::test::ScopedTrackObserver shown(g_front_end, observer);  // also unset when a REQUIRE throws
   *matched = 0.0;
   *predicted = 0.0;
   for (std::size_t i = 2; i < scene.views.size(); ++i) {
     REQUIRE(ok(camera.render(scene.views[i], va, nullptr, i)));
+    if (normal_oracle) normals.apply(g_front_end, g_pool);
     REQUIRE(ok(g_front_end.update(va.as_const(), scene.views[i], g_pool, &report)));
     std::printf("  view %zu: predicted %u matched %u updated %u failed %u gated %u spawned %u merged %u (pool %zu)\n", i,
                 report.predicted_in_view, report.matched, report.updated, report.failed_matches, report.gated_outliers,
@@ -355,6 +438,10 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double refu
   run->refused_matches = observer.refused();
   run->tracked_matches = *matched;
   if (refuse_above_half_nees > 0.0) std::printf("  tail oracle: refused %zu matches\n", run->refused_matches);
+  if (normal_oracle) {
+    std::printf("  normal oracle: %llu normals adopted, %llu asked without a truth\n",
+                static_cast<unsigned long long>(normals.adopted()), static_cast<unsigned long long>(normals.without_truth()));
+  }
 }
 
 // One line per gross failure (NEES > kGrossNees), to tell their kinds apart: a seed patch across a depth
@@ -583,9 +670,10 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 
 // The tracker's configuration: the default, or with masked templates matched by warping the image
 // (FrontEndConfig::inverse_warp_masked, off by default), or the default with the tail oracle: every tracked
-// match beyond the chi2(2) 99 % quantile against the truth refused (a diagnostic, not a configuration).
-enum class Matcher { kDefault, kInverseWarp, kTailOracle };
-constexpr int kMatchers = 3;
+// match beyond the chi2(2) 99 % quantile against the truth refused, or with the normal oracle: every
+// primitive given its true normal before each update (diagnostics, not configurations).
+enum class Matcher { kDefault, kInverseWarp, kTailOracle, kNormalOracle };
+constexpr int kMatchers = 4;
 
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
@@ -595,7 +683,8 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   double predicted = 0.0;
   const bool tail_oracle = matcher == Matcher::kTailOracle;
   std::printf("%s%s:\n", scene.name, matcher == Matcher::kInverseWarp ? " (inverse_warp_masked)" : "");
-  run_front_end(scene, config, tail_oracle ? sim::kChi2Dof2Q99Half : 0.0, &matched, &predicted, &out);
+  run_front_end(scene, config, tail_oracle ? sim::kChi2Dof2Q99Half : 0.0, matcher == Matcher::kNormalOracle, &matched,
+                &predicted, &out);
   // Where the over-confidence sits (core/frontend/EXPERIMENTS.md, "Where the over-confidence sits", "What
   // the split measures"): the primitives matched in every view that sees them against those that missed one.
   TrackSplit front_end_split;
@@ -652,9 +741,11 @@ const char* plane_name(Resolution resolution, PlaneTilt tilt) {
   return names[static_cast<int>(resolution)][static_cast<int>(tilt)];
 }
 
-// The tail oracle's rows carry its name, so they are not read as the default's.
+// The oracles' rows carry their names, so they are not read as the default's.
 std::string scene_name(const char* scene, Matcher matcher) {
-  return std::string(scene) + (matcher == Matcher::kTailOracle ? " (tail oracle)" : "");
+  return std::string(scene) + (matcher == Matcher::kTailOracle     ? " (tail oracle)"
+                               : matcher == Matcher::kNormalOracle ? " (normal oracle)"
+                                                                   : "");
 }
 
 // The plane through the origin, 80 x 80 units, facing +x turned by the tilt about +z, seen on an arc of
@@ -922,5 +1013,29 @@ TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives acc
     REQUIRE(plane.inverse_warp_matches > 300u);
     const double n = static_cast<double>(plane.inverse_warp_matches);
     CHECK(plane.inverse_warp_match_half_nees <= chi2_quantile(2.0 * n, kZ975) / (2.0 * n));
+  }
+}
+
+// What normals as good as the truth would buy (sim::NormalOracle: before each update every primitive adopts
+// its seed patch's true plane normal with a tilt variance of 1e-4): the tracked primitives' RMS distance to
+// the surface, measured (EXPERIMENTS.md, "Session 24"): bunny 0.0849 -> 0.0397 (320x240) and 0.0385 ->
+// 0.0246 (640x480); planes facing, 45 and 60 degrees 0.0293 -> 0.0271, 0.0303 -> 0.0248, 0.0183 -> 0.0178
+// (320x240) and 0.0389 -> 0.0303, 0.0425 -> 0.0314, 0.0230 -> 0.0193 (640x480). A diagnostic, 20 s.
+TEST_CASE("true normals make the bunny's and the tilted planes' tracked primitives more accurate", "[.][normal-oracle]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny = bunny_run(resolution, Matcher::kNormalOracle);
+    INFO("bunny tracked RMS surface error " << bunny_default.tracked.rms_error << " -> " << bunny.tracked.rms_error
+                                            << ", NEES " << bunny_default.tracked.mean_nees << " -> "
+                                            << bunny.tracked.mean_nees);
+    REQUIRE(bunny.tracked.primitives > 300u);
+    CHECK(bunny.tracked.rms_error < 0.8 * bunny_default.tracked.rms_error);
+    for (PlaneTilt tilt : {PlaneTilt::kFacing, PlaneTilt::k45Degrees, PlaneTilt::k60Degrees}) {
+      const SceneRun& plane_default = plane_run(resolution, Matcher::kDefault, tilt);
+      const SceneRun& plane = plane_run(resolution, Matcher::kNormalOracle, tilt);
+      INFO("plane tilted " << tilt_degrees(tilt) << ": tracked RMS surface error " << plane_default.tracked.rms_error
+                           << " -> " << plane.tracked.rms_error);
+      CHECK(plane.tracked.rms_error < plane_default.tracked.rms_error);
+    }
   }
 }

@@ -1,0 +1,112 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "core/frontend/image_front_end.hpp"
+#include "core/geometry/projection.hpp"
+#include "sim_hal/ground_truth/normal_oracle.hpp"
+#include "sim_hal/raycast_camera.hpp"
+#include "test_meshes.hpp"
+
+using namespace vantage;
+using namespace vantage::sim;
+
+namespace {
+
+Viewpoint looking_at_origin_from(const Eigen::Vector3d& position) {
+  Viewpoint v;
+  REQUIRE(ok(look_at(position, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v)));
+  return v;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::fmin(1.0, a.normalized().dot(b.normalized()))) * 180.0 / test::kPi;
+}
+
+constexpr std::int32_t kStride = 4;
+
+// Static storage, as in a target: the front end is megabytes.
+ImageFrontEnd g_front_end;
+PrimitivePool<4096> g_pool;
+
+}  // namespace
+
+TEST_CASE("a patch's plane normal is the face's on a box and the radial direction on a sphere, facing the view",
+          "[sim_hal][normal_oracle]") {
+  const PinholeIntrinsics k = test::small_intrinsics();
+  const EmbreeScene box{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  // The +x face seen head on and obliquely: its normal either way.
+  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(78, 58), looking_at_origin_from({30, 0, 0}), &n));
+  CHECK(angle_deg(n, Eigen::Vector3d::UnitX()) < 1e-3);
+  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(70, 62), looking_at_origin_from({28, 8, 3}), &n));
+  CHECK(angle_deg(n, Eigen::Vector3d::UnitX()) < 1e-3);
+  // A sphere of radius 8: the patch plane is the tangent plane at its centre's hit, to within a degree.
+  const EmbreeScene sphere{test::make_uv_sphere(Eigen::Vector3f::Zero(), 8.0f, 256)};
+  const Viewpoint view = looking_at_origin_from({30, 0, 0});
+  const Eigen::Vector2d seed(100, 40);
+  const Eigen::Vector3d ray = back_project_ray_world(seed, view, k);
+  const double t = sphere.first_hit(view.position_world, ray);
+  REQUIRE(std::isfinite(t));
+  REQUIRE(patch_plane_normal(sphere, k, seed, view, &n));
+  CHECK(angle_deg(n, view.position_world + t * ray) < 1.0);
+  // Rays past the box: no plane, the output untouched.
+  n = Eigen::Vector3d(0, 0, 7);
+  CHECK_FALSE(patch_plane_normal(box, k, Eigen::Vector2d(2, 2), looking_at_origin_from({30, 0, 0}), &n));
+  CHECK(n == Eigen::Vector3d(0, 0, 7));
+}
+
+TEST_CASE("the normal oracle gives every primitive its seed's face normal and counts those without a truth",
+          "[sim_hal][normal_oracle]") {
+  // A textured plate facing +x and filling the image, seen from 30 units by a two-view start one unit apart.
+  const EmbreeScene plate{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(0.1f, 20.0f, 20.0f))};
+  const PinholeIntrinsics k = test::small_intrinsics();
+  RaycastCameraConfig camera_config;
+  camera_config.intrinsics = k;
+  const RaycastCamera camera(plate, camera_config, nullptr);
+  const Viewpoint first = looking_at_origin_from({30, 0, 0});
+  const Viewpoint second = looking_at_origin_from({30, 1, 0});
+  std::vector<std::uint8_t> a(static_cast<std::size_t>(k.width_px) * k.height_px);
+  std::vector<std::uint8_t> b(a.size());
+  REQUIRE(ok(camera.render(first, MutableGrayImageView{a.data(), k.width_px, k.height_px, k.width_px}, nullptr, 0)));
+  REQUIRE(ok(camera.render(second, MutableGrayImageView{b.data(), k.width_px, k.height_px, k.width_px}, nullptr, 1)));
+  FrontEndConfig config;
+  config.seed_stride_px = kStride;
+  REQUIRE(ok(g_front_end.configure(k, config)));
+  g_pool.clear();
+  UpdateReport report;
+  REQUIRE(ok(g_front_end.initialize(GrayImageView{a.data(), k.width_px, k.height_px, k.width_px}, first,
+                                    GrayImageView{b.data(), k.width_px, k.height_px, k.width_px}, second, g_pool,
+                                    &report)));
+  REQUIRE(g_pool.size() > 20u);
+  // Every primitive given a wrong, confident normal first, so the oracle's is the one seen afterwards.
+  const Eigen::Vector3d wrong = Eigen::Vector3d(0.6, 0.8, 0.0);
+  PrimitiveIndex moved = kInvalidPrimitive;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    REQUIRE(ok(g_front_end.adopt_normal(i, wrong, 0.01, g_pool)));
+    if (moved == kInvalidPrimitive) moved = i;
+  }
+  // One primitive said to come from a view the front end never saw: no creating pose, no truth.
+  g_pool[moved].creating_view = 999;
+  NormalOracle oracle(plate, k, kStride);
+  oracle.apply(g_front_end, g_pool);
+  CHECK(oracle.adopted() == g_pool.size() - 1);
+  CHECK(oracle.without_truth() == 1u);
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    INFO("slot " << i);
+    if (i == moved) {
+      CHECK(angle_deg(g_pool[i].normal_world.cast<double>(), wrong) < 1e-3);
+      CHECK(g_front_end.normal_tilt_variance(i) == Approx(0.01));
+    } else {
+      CHECK(angle_deg(g_pool[i].normal_world.cast<double>(), Eigen::Vector3d::UnitX()) < 1e-3);
+      CHECK(g_front_end.normal_tilt_variance(i) == Approx(kNormalOracleTiltVariance));
+    }
+  }
+  // Asked again, the cached truths give the same, and the counts add up.
+  oracle.apply(g_front_end, g_pool);
+  CHECK(oracle.adopted() == 2 * (g_pool.size() - 1));
+  CHECK(oracle.without_truth() == 2u);
+}
