@@ -18,8 +18,8 @@ PACKAGES=(
   catch2 libbenchmark-dev
   # sim_hal: ray casting, mesh loading, the default scene, scene files
   libembree-dev libassimp-dev glmark2-data libtomlplusplus-dev
-  # targets: command line, images, plots
-  libcli11-dev libpng-dev gnuplot-nox
+  # targets: command line, images, plots; the paired mission comparison (targets/sim/tools)
+  libcli11-dev libpng-dev gnuplot-nox python3
   # hal: capture and calibration
   libcamera-dev libv4l-dev libyaml-cpp-dev libssl-dev
   # aarch64 cross-build and its test runner
