@@ -14,12 +14,6 @@ using namespace vantage::sim;
 
 namespace {
 
-Viewpoint looking_at_origin_from(const Eigen::Vector3d& position) {
-  Viewpoint v;
-  REQUIRE(ok(look_at(position, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v)));
-  return v;
-}
-
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::fmin(1.0, a.normalized().dot(b.normalized()))) * 180.0 / test::kPi;
 }
@@ -38,13 +32,13 @@ TEST_CASE("a patch's plane normal is the face's on a box and the radial directio
   const EmbreeScene box{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
   // The +x face seen head on and obliquely: its normal either way.
-  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(78, 58), looking_at_origin_from({30, 0, 0}), &n));
+  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(78, 58), test::looking_at({30, 0, 0}), &n));
   CHECK(angle_deg(n, Eigen::Vector3d::UnitX()) < 1e-3);
-  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(70, 62), looking_at_origin_from({28, 8, 3}), &n));
+  REQUIRE(patch_plane_normal(box, k, Eigen::Vector2d(70, 62), test::looking_at({28, 8, 3}), &n));
   CHECK(angle_deg(n, Eigen::Vector3d::UnitX()) < 1e-3);
   // A sphere of radius 8: the patch plane is the tangent plane at its centre's hit, to within a degree.
   const EmbreeScene sphere{test::make_uv_sphere(Eigen::Vector3f::Zero(), 8.0f, 256)};
-  const Viewpoint view = looking_at_origin_from({30, 0, 0});
+  const Viewpoint view = test::looking_at({30, 0, 0});
   const Eigen::Vector2d seed(100, 40);
   const Eigen::Vector3d ray = back_project_ray_world(seed, view, k);
   const double t = sphere.first_hit(view.position_world, ray);
@@ -53,7 +47,7 @@ TEST_CASE("a patch's plane normal is the face's on a box and the radial directio
   CHECK(angle_deg(n, view.position_world + t * ray) < 1.0);
   // Rays past the box: no plane, the output untouched.
   n = Eigen::Vector3d(0, 0, 7);
-  CHECK_FALSE(patch_plane_normal(box, k, Eigen::Vector2d(2, 2), looking_at_origin_from({30, 0, 0}), &n));
+  CHECK_FALSE(patch_plane_normal(box, k, Eigen::Vector2d(2, 2), test::looking_at({30, 0, 0}), &n));
   CHECK(n == Eigen::Vector3d(0, 0, 7));
 }
 
@@ -65,8 +59,8 @@ TEST_CASE("the normal oracle gives every primitive its seed's face normal and co
   RaycastCameraConfig camera_config;
   camera_config.intrinsics = k;
   const RaycastCamera camera(plate, camera_config, nullptr);
-  const Viewpoint first = looking_at_origin_from({30, 0, 0});
-  const Viewpoint second = looking_at_origin_from({30, 1, 0});
+  const Viewpoint first = test::looking_at({30, 0, 0});
+  const Viewpoint second = test::looking_at({30, 1, 0});
   std::vector<std::uint8_t> a(static_cast<std::size_t>(k.width_px) * k.height_px);
   std::vector<std::uint8_t> b(a.size());
   REQUIRE(ok(camera.render(first, MutableGrayImageView{a.data(), k.width_px, k.height_px, k.width_px}, nullptr, 0)));

@@ -16,12 +16,6 @@ namespace {
 PrimitivePool<8192> g_pool;
 PrimitivePool<16> g_other_pool;
 
-Viewpoint looking_at_origin(const Eigen::Vector3d& eye) {
-  Viewpoint v;
-  REQUIRE(ok(look_at(eye, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v)));
-  return v;
-}
-
 double mean_nees(const OracleMeasurementSource& oracle, const PrimitivePoolView& pool) {
   double sum = 0.0;
   std::size_t n = 0;
@@ -38,10 +32,10 @@ double mean_nees(const OracleMeasurementSource& oracle, const PrimitivePoolView&
 
 // Fills g_pool from the pair 30 units out on +x, 4 units apart; returns the first view.
 Viewpoint initialize_from_pair(OracleMeasurementSource& oracle) {
-  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
+  const Viewpoint a = test::looking_at(Eigen::Vector3d(30.0, 0.0, 0.0));
   g_pool.clear();
   UpdateReport report;
-  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, test::looking_at(Eigen::Vector3d(30.0, 4.0, 0.0)),
                                g_pool, &report)));
   return a;
 }
@@ -53,8 +47,8 @@ TEST_CASE("oracle initialization: depth-elongated covariance and honest errors",
   OracleConfig config;
   config.site_count = 4000;
   OracleMeasurementSource oracle(scene, config);
-  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
-  const Viewpoint b = looking_at_origin(Eigen::Vector3d(30.0, 1.0, 0.0));  // small baseline
+  const Viewpoint a = test::looking_at(Eigen::Vector3d(30.0, 0.0, 0.0));
+  const Viewpoint b = test::looking_at(Eigen::Vector3d(30.0, 1.0, 0.0));  // small baseline
   g_pool.clear();
   UpdateReport report;
   REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, b, g_pool, &report)));
@@ -82,13 +76,13 @@ TEST_CASE("oracle update: EKF updates shrink sigma and augmentation adds new sur
   OracleMeasurementSource oracle(scene, config);
   g_pool.clear();
   UpdateReport report;
-  REQUIRE(ok(oracle.initialize(GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0)), GrayImageView{},
-                               looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)), g_pool, &report)));
+  REQUIRE(ok(oracle.initialize(GrayImageView{}, test::looking_at(Eigen::Vector3d(30.0, 0.0, 0.0)), GrayImageView{},
+                               test::looking_at(Eigen::Vector3d(30.0, 4.0, 0.0)), g_pool, &report)));
   const std::size_t initial = g_pool.size();
   const double sigma_before = GroundTruth::average_sigma(g_pool);
   const std::uint64_t revision = g_pool.revision();
 
-  REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(21.0, 21.0, 0.0)), g_pool, &report)));
+  REQUIRE(ok(oracle.update(GrayImageView{}, test::looking_at(Eigen::Vector3d(21.0, 21.0, 0.0)), g_pool, &report)));
   CHECK(report.predicted_in_view > 100);
   CHECK(report.matched == report.predicted_in_view);
   CHECK(report.updated + report.gated_outliers == report.matched);
@@ -100,7 +94,7 @@ TEST_CASE("oracle update: EKF updates shrink sigma and augmentation adds new sur
   CHECK(mean_nees(oracle, g_pool) == Approx(3.0).margin(0.5));
 
   // A pool the oracle did not build is refused, nothing changes.
-  CHECK(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(0.0, 30.0, 0.0)), g_other_pool, &report) ==
+  CHECK(oracle.update(GrayImageView{}, test::looking_at(Eigen::Vector3d(0.0, 30.0, 0.0)), g_other_pool, &report) ==
         Status::kInvalidArgument);
 }
 
@@ -152,7 +146,7 @@ TEST_CASE("oracle track loss: K gated observations in a row erase a primitive an
   CHECK(erased >= 1u);
   // The freed site is spawned again from the next pair that sees it with a baseline.
   const std::size_t before = g_pool.size();
-  REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, -4.0, 0.0)), g_pool, &report)));
+  REQUIRE(ok(oracle.update(GrayImageView{}, test::looking_at(Eigen::Vector3d(30.0, -4.0, 0.0)), g_pool, &report)));
   CHECK(report.spawned > 0u);
   CHECK(g_pool.size() == before + report.spawned - report.gated_erased);
   bool respawned = false;
@@ -165,7 +159,7 @@ TEST_CASE("oracle track loss: K gated observations in a row erase a primitive an
   config.max_gated_in_a_row = 0;
   OracleMeasurementSource never(scene, config);
   g_pool.clear();
-  REQUIRE(ok(never.initialize(GrayImageView{}, a, GrayImageView{}, looking_at_origin(Eigen::Vector3d(30.0, 4.0, 0.0)),
+  REQUIRE(ok(never.initialize(GrayImageView{}, a, GrayImageView{}, test::looking_at(Eigen::Vector3d(30.0, 4.0, 0.0)),
                               g_pool, &report)));
   for (int n = 0; n < 4; ++n) {
     spoil(lost);
@@ -218,15 +212,15 @@ TEST_CASE("the oracle is deterministic for a seed", "[sim_hal][oracle]") {
   const EmbreeScene scene{test::make_uv_sphere(Eigen::Vector3f::Zero(), 5.0f, 32)};
   OracleConfig config;
   config.site_count = 500;
-  const Viewpoint a = looking_at_origin(Eigen::Vector3d(30.0, 0.0, 0.0));
-  const Viewpoint b = looking_at_origin(Eigen::Vector3d(30.0, 2.0, 0.0));
+  const Viewpoint a = test::looking_at(Eigen::Vector3d(30.0, 0.0, 0.0));
+  const Viewpoint b = test::looking_at(Eigen::Vector3d(30.0, 2.0, 0.0));
   std::vector<Eigen::Vector3d> first;
   for (int run = 0; run < 2; ++run) {
     OracleMeasurementSource oracle(scene, config);
     g_pool.clear();
     UpdateReport report;
     REQUIRE(ok(oracle.initialize(GrayImageView{}, a, GrayImageView{}, b, g_pool, &report)));
-    REQUIRE(ok(oracle.update(GrayImageView{}, looking_at_origin(Eigen::Vector3d(25.0, 10.0, 3.0)), g_pool, &report)));
+    REQUIRE(ok(oracle.update(GrayImageView{}, test::looking_at(Eigen::Vector3d(25.0, 10.0, 3.0)), g_pool, &report)));
     for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
       if (run == 0) {
         first.push_back(g_pool[i].X_world);

@@ -14,13 +14,8 @@ using namespace vantage::sim;
 
 namespace {
 
+using test::looking_at;
 using test::small_intrinsics;
-
-Viewpoint looking_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  Viewpoint v;
-  REQUIRE(ok(look_at(eye, target, Eigen::Vector3d::UnitZ(), &v)));
-  return v;
-}
 
 struct FixedPose final : SimPoseSource {
   Viewpoint pose;

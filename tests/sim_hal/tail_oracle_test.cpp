@@ -11,12 +11,6 @@ using namespace vantage::sim;
 
 namespace {
 
-Viewpoint looking_at_origin_from(const Eigen::Vector3d& position) {
-  Viewpoint v;
-  REQUIRE(ok(look_at(position, Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), &v)));
-  return v;
-}
-
 constexpr std::int32_t kStride = 4;
 
 // A tracked observation of the box's +x face seen from `creating`: the primitive stands on the ray of seed
@@ -47,9 +41,9 @@ bool observation(const EmbreeScene& scene, const Viewpoint& creating, const View
 TEST_CASE("the tail oracle refuses matches beyond the 99% quantile against the truth, and hidden true points",
           "[sim_hal][tail_oracle]") {
   const EmbreeScene scene{test::make_box(Eigen::Vector3f::Zero(), Eigen::Vector3f(5, 5, 5))};
-  const Viewpoint creating = looking_at_origin_from(Eigen::Vector3d(30, 0, 0));
-  const Viewpoint view = looking_at_origin_from(Eigen::Vector3d(28, 8, 3));
-  const Viewpoint behind = looking_at_origin_from(Eigen::Vector3d(-30, 0, 0));
+  const Viewpoint creating = test::looking_at(Eigen::Vector3d(30, 0, 0));
+  const Viewpoint view = test::looking_at(Eigen::Vector3d(28, 8, 3));
+  const Viewpoint behind = test::looking_at(Eigen::Vector3d(-30, 0, 0));
   TailOracle oracle(scene, test::small_intrinsics(), kStride);
   TrackedObservation o;
   const Eigen::Vector2d seed(78, 58);

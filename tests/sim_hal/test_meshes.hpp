@@ -1,5 +1,6 @@
 #pragma once
-// Small analytic meshes, the small camera they are seen with, and scratch files for the sim_hal tests.
+// Small analytic meshes, the small camera they are seen with and its views, and scratch files for the
+// sim_hal tests.
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -7,7 +8,10 @@
 #include <string>
 #include <unistd.h>
 
+#include <catch2/catch.hpp>
+
 #include "core/geometry/pinhole_intrinsics.hpp"
+#include "core/geometry/viewpoint.hpp"
 #include "sim_hal/scene/triangle_mesh.hpp"
 
 namespace vantage::sim::test {
@@ -23,6 +27,13 @@ inline PinholeIntrinsics small_intrinsics() {
   k.cx_px = 79.5;
   k.cy_px = 59.5;
   return k;
+}
+
+// A camera at eye looking at target (the origin by default), +z up.
+inline Viewpoint looking_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target = Eigen::Vector3d::Zero()) {
+  Viewpoint v;
+  REQUIRE(ok(look_at(eye, target, Eigen::Vector3d::UnitZ(), &v)));
+  return v;
 }
 
 // Axis-aligned box centred at centre with the given half sizes, outward winding.
