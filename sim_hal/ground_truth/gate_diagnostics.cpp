@@ -22,11 +22,18 @@ Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv_px, double stride_px) 
                          std::round((uv_px.y() - half) / stride_px) * stride_px + half);
 }
 
-bool seed_true_point(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, std::int32_t stride_px,
-                     const Primitive& p, const Viewpoint& creating, Eigen::Vector3d* X_true) {
+bool seed_px_of(const PinholeIntrinsics& intrinsics, std::int32_t stride_px, const Primitive& p,
+                const Viewpoint& creating, Eigen::Vector2d* seed_px) {
   Eigen::Vector2d uv_creating;
   if (!ok(project(p.X_world, creating, intrinsics, &uv_creating))) return false;
-  const Eigen::Vector2d seed = nearest_seed_px(uv_creating, stride_px);
+  *seed_px = nearest_seed_px(uv_creating, stride_px);
+  return true;
+}
+
+bool seed_true_point(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, std::int32_t stride_px,
+                     const Primitive& p, const Viewpoint& creating, Eigen::Vector3d* X_true) {
+  Eigen::Vector2d seed;
+  if (!seed_px_of(intrinsics, stride_px, p, creating, &seed)) return false;
   const Eigen::Vector3d ray = back_project_ray_world(seed, creating, intrinsics);
   const double t = scene.first_hit(creating.position_world, ray);
   if (!std::isfinite(t)) return false;

@@ -24,8 +24,13 @@ namespace vantage::sim {
 // truth of the front end's consistency figures (here and in tests/integration).
 Eigen::Vector2d nearest_seed_px(const Eigen::Vector2d& uv_px, double stride_px);
 
-// A primitive's true point: where the ray of its seed pixel (p's projection into the creating view,
-// snapped) meets the surface. False when p is behind the creating camera or the ray misses the mesh.
+// The seed pixel of primitive p: its projection into the creating view, snapped (nearest_seed_px). False,
+// output untouched, when p is behind the creating camera.
+bool seed_px_of(const PinholeIntrinsics& intrinsics, std::int32_t stride_px, const Primitive& p,
+                const Viewpoint& creating, Eigen::Vector2d* seed_px);
+
+// A primitive's true point: where the ray of its seed pixel (seed_px_of) meets the surface. False when p
+// is behind the creating camera or the ray misses the mesh.
 bool seed_true_point(const EmbreeScene& scene, const PinholeIntrinsics& intrinsics, std::int32_t stride_px,
                      const Primitive& p, const Viewpoint& creating, Eigen::Vector3d* X_true);
 

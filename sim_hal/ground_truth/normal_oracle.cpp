@@ -43,12 +43,12 @@ void NormalOracle::apply(ImageFrontEnd& front_end, PrimitivePoolView& pool) {
     if (!pool.is_alive(i)) continue;
     const Primitive& p = pool[i];
     Viewpoint creating;
-    Eigen::Vector2d uv;
-    if (!ok(front_end.view_pose(p.creating_view, &creating)) || !ok(project(p.X_world, creating, intrinsics_, &uv))) {
+    Eigen::Vector2d seed;
+    if (!ok(front_end.view_pose(p.creating_view, &creating)) ||
+        !seed_px_of(intrinsics_, stride_px_, p, creating, &seed)) {
       ++without_truth_;
       continue;
     }
-    const Eigen::Vector2d seed = nearest_seed_px(uv, stride_px_);
     Truth& truth = truths_[i];
     if (truth.creating_view != p.creating_view || truth.seed_px != seed) {
       truth.creating_view = p.creating_view;
