@@ -357,6 +357,7 @@ void ImageFrontEnd::forget_primitive_tables() {
   // Primitives someone else put in the pool have a normal nobody fitted (the facing-camera prior), no
   // recorded patch noise and no rejection history.
   normal_tilt_variance_.fill(static_cast<float>(config_.facing_normal_tilt_variance));
+  normal_source_.fill(NormalSource::kFacingPrior);
   for (TemplateNoise& noise : template_noise_) {
     noise.cross_covariance.setZero();
     noise.covariance_px2.setZero();
@@ -742,7 +743,7 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
                                   ? warp_shift_covariance(tmpl, A, dA, estimate.tilt_variance)
                                   : Eigen::Matrix2d::Zero();
   p.normal_world = estimate.normal_world;
-  set_normal_tilt_variance(i, estimate.tilt_variance);
+  set_normal_tilt_variance(i, estimate.tilt_variance, NormalSource::kPhotometric);
   *tmpl_out = tmpl;
   *B = B_new;
   *warp_covariance = warp;
@@ -779,7 +780,7 @@ bool ImageFrontEnd::match_by_inverse_warp(PrimitiveIndex i, const GrayImageView&
   }
   if (estimate.tilt_variance < normal_tilt_variance(i)) {
     p.normal_world = estimate.normal_world;
-    set_normal_tilt_variance(i, estimate.tilt_variance);
+    set_normal_tilt_variance(i, estimate.tilt_variance, NormalSource::kInverseWarp);
   }
   *observed = estimate.uv_target_px;
   // The 49 reference samples lie on an image area of 49 / |det A| pixels: where that is smaller they are
@@ -909,13 +910,15 @@ void ImageFrontEnd::refit_normals(const Viewpoint& view, PrimitivePoolView& pool
       if (count != n && count != 2 * n && count != 4 * n && count != 8 * n) continue;
       const double spacing = config_.seed_stride_px * cell_depth_[cell] / focal;
       // Only neighbours known to a fraction of their spacing say anything about the plane.
-      fit_normal(cell_primitive_[cell], cx, cy, spacing, 0.25 * spacing, view.position_world, false, pool);
+      fit_normal(cell_primitive_[cell], cx, cy, spacing, 0.25 * spacing, view.position_world, false, NormalSource::kRefit,
+                 pool);
     }
   }
 }
 
 void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
-                               const Eigen::Vector3d& camera_world, bool along_rays, PrimitivePoolView& pool) {
+                               const Eigen::Vector3d& camera_world, bool along_rays, NormalSource source,
+                               PrimitivePoolView& pool) {
   Primitive& p = pool[i];
   std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours> neighbours;
   std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours> sigmas;
@@ -945,7 +948,7 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
   // A fit from noisy neighbours can know less than the normal already has: keep the better one.
   if (config_.model_normal_uncertainty && !(tilt_variance < normal_tilt_variance(i))) return;
   p.normal_world = normal;
-  set_normal_tilt_variance(i, tilt_variance);
+  set_normal_tilt_variance(i, tilt_variance, source);
 }
 
 void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
@@ -978,12 +981,18 @@ Status ImageFrontEnd::adopt_normal(PrimitiveIndex i, const Eigen::Vector3d& norm
   if (!normal_world.allFinite() || !std::isfinite(tilt_variance)) return Status::kNonFiniteInput;
   if (!(std::abs(normal_world.norm() - 1.0) <= 1e-3) || !(tilt_variance > 0.0)) return Status::kInvalidArgument;
   pool[i].normal_world = normal_world.normalized().cast<float>();
-  set_normal_tilt_variance(i, tilt_variance);
+  set_normal_tilt_variance(i, tilt_variance, NormalSource::kAdopted);
   return Status::kOk;
 }
 
-void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance) {
-  if (i < kFrontEndMaxPrimitives) normal_tilt_variance_[i] = static_cast<float>(variance);
+void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance, NormalSource source) {
+  if (i >= kFrontEndMaxPrimitives) return;
+  normal_tilt_variance_[i] = static_cast<float>(variance);
+  normal_source_[i] = source;
+}
+
+NormalSource ImageFrontEnd::normal_source(PrimitiveIndex i) const {
+  return i < kFrontEndMaxPrimitives ? normal_source_[i] : NormalSource::kFacingPrior;
 }
 
 std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool,
@@ -1142,7 +1151,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       if (!ok(inserted)) continue;
       ++report.spawned;
       if (index < kFrontEndMaxPrimitives) rejected_in_a_row_[index] = 0;
-      set_normal_tilt_variance(index, config_.facing_normal_tilt_variance);
+      set_normal_tilt_variance(index, config_.facing_normal_tilt_variance, NormalSource::kFacingPrior);
       remember_template_noise(index, p, other_view, observation.R_b_px2, fit_covariance);
       cell_primitive_[cell] = index;
       cell_depth_[cell] = static_cast<float>(depth);
@@ -1160,7 +1169,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       if ((cell_state_[cell] & kCellSpawned) == 0) continue;
       const PrimitiveIndex i = cell_primitive_[cell];
       fit_normal(i, cx, cy, stride * cell_depth_[cell] / focal, std::numeric_limits<double>::infinity(),
-                 reference_view.position_world, along_rays, pool);
+                 reference_view.position_world, along_rays, NormalSource::kSpawnFit, pool);
       if (along_rays) continue;
       Primitive& p = pool[i];
       const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();

@@ -236,6 +236,17 @@ struct FrontEndConfig {
   Eigen::Matrix2d match_floor_px2(const PinholeIntrinsics& intrinsics) const;
 };
 
+// Where a primitive's normal came from (ImageFrontEnd::normal_source). The integration test splits the
+// normals' errors by it (core/frontend/EXPERIMENTS.md, "Session 25").
+enum class NormalSource : std::uint8_t {
+  kFacingPrior = 0,  // a new primitive's, or one put in the pool from elsewhere: it faces the creating camera
+  kSpawnFit,         // the plane through its neighbours when it was created
+  kRefit,            // the plane through its neighbours, refitted after it was tracked
+  kPhotometric,      // estimated from its reference patch's appearance in a later image
+  kInverseWarp,      // the same estimate, made by an inverse-warp match
+  kAdopted,          // given from outside (ImageFrontEnd::adopt_normal)
+};
+
 // Why tracked observations failed, one count per failed observation (each also counts in its frame's
 // UpdateReport::failed_matches). template_masked: the plane map stretches the 7 x 7 template so far that
 // fewer than half its pixels sample the stored reference patch, which happens when the view differs much
@@ -355,6 +366,8 @@ class ImageFrontEnd final : public MeasurementSource {
   // The tilt variance (rad^2 per axis) of primitive i's normal: the facing prior, a plane fit's or a
   // photometric estimate's (README, "Normal uncertainty").
   double normal_tilt_variance(PrimitiveIndex i) const;
+  // Where primitive i's normal came from (kFacingPrior beyond kFrontEndMaxPrimitives).
+  NormalSource normal_source(PrimitiveIndex i) const;
   // Gives alive primitive i a normal known from elsewhere (a prior model, a range sensor, a simulator's
   // ground truth) with its tilt variance (rad^2 per axis): the warp of its template and the normal's share
   // of R use it from the next update on, and a plane refit or photometric estimate replaces it only when it
@@ -460,14 +473,15 @@ class ImageFrontEnd final : public MeasurementSource {
   // Refits primitive i's normal from the neighbours of cell (cx, cy) (spacing: the cells' spacing at its
   // depth, scene units; max_sigma: the neighbours' largest sigma_bound); keeps the fit when its tilt
   // variance is below the current one. The camera orients the normal; along_rays picks
-  // fit_plane_normal_along_rays (the neighbours' errors along that camera's rays), else fit_plane_normal.
+  // fit_plane_normal_along_rays (the neighbours' errors along that camera's rays), else fit_plane_normal;
+  // source says which fit it is (kSpawnFit or kRefit).
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
-                  const Eigen::Vector3d& camera_world, bool along_rays, PrimitivePoolView& pool);
+                  const Eigen::Vector3d& camera_world, bool along_rays, NormalSource source, PrimitivePoolView& pool);
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
                                const Eigen::Matrix2d& R_other_px2, const Eigen::Matrix2d& fit_covariance_px2);
-  void set_normal_tilt_variance(PrimitiveIndex i, double variance);
+  void set_normal_tilt_variance(PrimitiveIndex i, double variance, NormalSource source);
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
              const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
@@ -507,6 +521,7 @@ class ImageFrontEnd final : public MeasurementSource {
 
   // Tilt variance (rad^2 per axis) of each primitive's normal, by pool index.
   std::array<float, kFrontEndMaxPrimitives> normal_tilt_variance_{};
+  std::array<NormalSource, kFrontEndMaxPrimitives> normal_source_{};
   // Consecutive failed or gated observations of each primitive (FrontEndConfig::max_rejected_in_a_row).
   std::array<std::uint8_t, kFrontEndMaxPrimitives> rejected_in_a_row_{};
   // The reference patch's noise per primitive (FrontEndConfig::model_template_noise): its covariance in

@@ -1156,3 +1156,38 @@ TEST_CASE("adopt_normal refuses a dead slot, a non-finite or non-unit normal and
   REQUIRE(ok(g_pool.erase(alive)));
   CHECK(g_front_end.adopt_normal(alive, unit, 1e-3, g_pool) == Status::kNotFound);
 }
+
+TEST_CASE("normal_source tells where each normal came from: the spawn's plane fit, then an adopted one; forget resets") {
+  Scene scene;
+  initialize_on_plane(scene, first_view(), second_view());
+  std::size_t alive = 0;
+  std::size_t fitted = 0;
+  PrimitiveIndex first = kInvalidPrimitive;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    ++alive;
+    if (first == kInvalidPrimitive) first = i;
+    const NormalSource source = g_front_end.normal_source(i);
+    // A new primitive's normal is the facing prior until its neighbours' plane fit replaces it, and the
+    // prior's tilt variance goes with the prior only.
+    CHECK((source == NormalSource::kFacingPrior || source == NormalSource::kSpawnFit));
+    if (source == NormalSource::kSpawnFit) {
+      ++fitted;
+      CHECK(g_front_end.normal_tilt_variance(i) < plane_config().facing_normal_tilt_variance);
+    } else {
+      CHECK(g_front_end.normal_tilt_variance(i) == Approx(plane_config().facing_normal_tilt_variance));
+    }
+  }
+  INFO("alive " << alive << ", spawn-fitted " << fitted);
+  REQUIRE(alive > 200u);
+  // On a textured plane nearly every new primitive has neighbours to fit (measured: all but the border's).
+  CHECK(fitted > 0.8 * alive);
+  REQUIRE(ok(g_front_end.adopt_normal(first, Eigen::Vector3d::UnitX(), 1e-4, g_pool)));
+  CHECK(g_front_end.normal_source(first) == NormalSource::kAdopted);
+  // A refused adoption leaves the source as it was.
+  CHECK(g_front_end.adopt_normal(first, Eigen::Vector3d::Zero(), 1e-4, g_pool) == Status::kInvalidArgument);
+  CHECK(g_front_end.normal_source(first) == NormalSource::kAdopted);
+  g_front_end.forget_primitive_tables();
+  CHECK(g_front_end.normal_source(first) == NormalSource::kFacingPrior);
+  CHECK(g_front_end.normal_source(static_cast<PrimitiveIndex>(kFrontEndMaxPrimitives)) == NormalSource::kFacingPrior);
+}
