@@ -142,6 +142,9 @@ int run_cli(int argc, const char* const* argv) {
   app.add_flag("--normal-oracle", options.normal_oracle,
                "image front end: before each update every primitive adopts the mesh's normal at its seed (a "
                "diagnostic: what normals as good as the truth would buy)");
+  app.add_flag("--normal-diagnostics", options.normal_diagnostics,
+               "image front end: at the end, print each normal source's normals against the mesh's (angle, "
+               "claimed tilt sd, their primitives' NEES)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -166,6 +169,10 @@ int run_cli(int argc, const char* const* argv) {
   }
   if (options.normal_oracle && options.measurement != MeasurementKind::kImage) {
     std::cerr << "vantage-sim: --normal-oracle needs --measurement image (got " << measurement << ")\n";
+    return 1;
+  }
+  if (options.normal_diagnostics && options.measurement != MeasurementKind::kImage) {
+    std::cerr << "vantage-sim: --normal-diagnostics needs --measurement image (got " << measurement << ")\n";
     return 1;
   }
   if (options.tail_oracle && options.gate_diagnostics) {

@@ -14,6 +14,7 @@
 #include "core/planning/sensing_executive.hpp"
 #include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "sim_hal/ground_truth/normal_oracle.hpp"
+#include "sim_hal/ground_truth/normals_by_source.hpp"
 #include "sim_hal/ground_truth/tail_oracle.hpp"
 #include "sim_hal/kinematic_robot.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
@@ -386,6 +387,13 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
   if (diagnostics) diagnostics->print(stderr);
   if (tail_oracle) tail_oracle->print(stderr);
   if (normal_oracle) normal_oracle->print(stderr);
+  if (options.normal_diagnostics && options.measurement == MeasurementKind::kImage) {
+    sim::NormalsBySource normals;
+    normals.add_pool(setup.world->scene(), g_front_end, g_pool);
+    normals.print(stderr, "normal diagnostics: ");
+    std::fprintf(stderr, "normal diagnostics: %llu primitives without a truth (creating view gone, or the seed ray or "
+                 "patch off the mesh)\n", static_cast<unsigned long long>(normals.skipped()));
+  }
   g_measurement.normal_oracle = nullptr;
   summary.images = g_executive.images();
   summary.nbv_iterations = g_executive.nbv_iterations();

@@ -63,6 +63,7 @@ struct MissionOptions {
   bool gate_diagnostics = false;       // image front end: classify tracked observations against ground truth
   bool tail_oracle = false;            // image front end: refuse the matches ground truth puts in the tail
   bool normal_oracle = false;          // image front end: every primitive adopts the mesh's normal before each update
+  bool normal_diagnostics = false;     // image front end: print the normals against the truth by source at the end
 };
 
 // The world and its ground truth, built once and shared by the runs of --compare.

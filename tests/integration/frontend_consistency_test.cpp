@@ -22,6 +22,7 @@
 #include "core/geometry/projection.hpp"
 #include "sim_hal/ground_truth/gate_diagnostics.hpp"
 #include "sim_hal/ground_truth/normal_oracle.hpp"
+#include "sim_hal/ground_truth/normals_by_source.hpp"
 #include "sim_hal/ground_truth/tail_oracle.hpp"
 #include "sim_hal/oracle/oracle_measurement_source.hpp"
 #include "sim_hal/raycast_camera.hpp"
@@ -470,57 +471,6 @@ void print_if_gross(const Scene& scene, const Primitive& p, double nees, const E
               depth_max);
 }
 
-// The front end's normals split by where each came from (ImageFrontEnd::normal_source), against the plane
-// through the mesh points the primitive's reference patch shows (sim::patch_plane_normal, what the normal
-// oracle adopts) and against the facet at the seed's point: whether each source's estimates are as good as
-// the tilt variance they claim (angle^2 / tilt variance: 2 when consistent; capped at 50 so the few normals
-// beyond the linear range do not hide the rest), and the NEES of the primitives that carry them
-// (core/frontend/EXPERIMENTS.md, "Session 25").
-class NormalsBySource {
- public:
-  void add(NormalSource source, const Eigen::Vector3d& normal, double tilt_variance, const Eigen::Vector3d& patch_plane,
-           const Eigen::Vector3d& facet, double primitive_nees) {
-    Sums& s = sums_[static_cast<std::size_t>(source)];
-    const double to_plane = std::acos(std::min(1.0, std::abs(normal.dot(patch_plane))));
-    const double to_facet = std::acos(std::min(1.0, std::abs(normal.dot(facet))));
-    ++s.count;
-    s.plane_deg += to_plane * 180.0 / M_PI;
-    s.facet_deg += to_facet * 180.0 / M_PI;
-    s.far_off += to_plane > 30.0 * M_PI / 180.0 ? 1.0 : 0.0;
-    s.claimed_sd_deg += std::sqrt(tilt_variance) * 180.0 / M_PI;
-    s.normal_nees += std::min(50.0, to_plane * to_plane / tilt_variance);
-    s.primitive_nees += primitive_nees;
-  }
-
-  void print(const char* scene) const {
-    static constexpr std::array<const char*, kSources> kNames = {"facing prior", "spawn fit", "refit", "photometric",
-                                                                "inverse warp", "adopted"};
-    for (std::size_t k = 0; k < kSources; ++k) {
-      const Sums& s = sums_[k];
-      if (s.count == 0.0) continue;
-      std::printf("%s, front end, normals from %s: N=%.0f mean angle to the patch plane %.1f deg (to the facet %.1f), "
-                  "more than 30 deg off %.3f, claimed sd %.1f deg, mean angle^2 / tilt variance %.2f (2, each capped at "
-                  "50), the primitives' mean NEES %.3f\n",
-                  scene, kNames[k], s.count, s.plane_deg / s.count, s.facet_deg / s.count, s.far_off / s.count,
-                  s.claimed_sd_deg / s.count, s.normal_nees / s.count, s.primitive_nees / s.count);
-    }
-  }
-
- private:
-  static constexpr std::size_t kSources = 6;
-  static_assert(static_cast<std::size_t>(NormalSource::kAdopted) + 1 == kSources, "a name for every source");
-  struct Sums {
-    double count = 0.0;
-    double plane_deg = 0.0;
-    double facet_deg = 0.0;
-    double far_off = 0.0;
-    double claimed_sd_deg = 0.0;
-    double normal_nees = 0.0;
-    double primitive_nees = 0.0;
-  };
-  std::array<Sums, kSources> sums_{};
-};
-
 // A row's primitives split by how their tracking went: those updated in every later view that sees their
 // true point (in the image and not hidden), and those that missed at least one such view. A gate rejects
 // the observations of the primitives furthest off, so even the oracle's that missed a view are
@@ -556,7 +506,7 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
   Samples samples(scene.surface_distance);
   Samples every_view(scene.surface_distance);
   Samples missed(scene.surface_distance);
-  NormalsBySource by_source;
+  sim::NormalsBySource by_source;
   const bool every_primitive = min_updates == 0 && provisional < 0;
   for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
     if (!g_pool.is_alive(i) || g_pool[i].observation_count < min_updates) continue;
@@ -582,16 +532,16 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
       samples.add_normal(p, true_normal, tilt_variance,
                          static_cast<float>(tilt_variance) == static_cast<float>(config.facing_normal_tilt_variance));
     }
+    // Each source's normals against the seed patch's plane (EXPERIMENTS.md, "Session 25").
     Eigen::Vector3d patch_plane;
-    if (every_primitive && scene.true_normal(seed, creating, &true_normal) &&
-        sim::patch_plane_normal(scene.world->scene(), k, seed, creating, &patch_plane)) {
+    if (every_primitive && sim::patch_plane_normal(scene.world->scene(), k, seed, creating, &patch_plane)) {
       by_source.add(g_front_end.normal_source(i), p.normal_world.cast<double>().normalized(),
-                    g_front_end.normal_tilt_variance(i), patch_plane, true_normal, nees);
+                    g_front_end.normal_tilt_variance(i), patch_plane, nees, p.observation_count);
     }
     if (split != nullptr) (missed_views(scene, p, truth) > 0 ? missed : every_view).add(p, truth, &seed_ray);
     if (every_primitive) print_if_gross(scene, p, nees, truth, seed, seed_ray, creating);
   }
-  if (every_primitive) by_source.print(scene.name);
+  if (every_primitive) by_source.print(stdout, (std::string(scene.name) + ", front end, ").c_str());
   if (split != nullptr) {
     split->matched_every_view = every_view.summarize(matched, predicted);
     split->missed_a_view = missed.summarize(matched, predicted);
