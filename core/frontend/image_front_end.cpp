@@ -160,7 +160,8 @@ Status FrontEndConfig::validate() const {
                            min_image_stddev_gray, max_clipped_fraction, merge_max_sigma, merge_max_normal_angle_deg,
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
-                           direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction};
+                           direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
+                           normal_refit_residual_floor};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -183,6 +184,7 @@ Status FrontEndConfig::validate() const {
   if (normal_fit_ring_cells < 1 || normal_fit_ring_cells > kFrontEndMaxNormalFitRing) return Status::kInvalidArgument;
   if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!(confirm_min_depth_information >= 0.0)) return Status::kInvalidArgument;
+  if (!(normal_refit_residual_floor >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
   if (!(epipolar_guard_fraction >= 0.0 && epipolar_guard_fraction <= kMaxEpipolarGuardFraction)) {
     return Status::kInvalidArgument;
@@ -941,12 +943,16 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
     // Farther neighbours lie across a depth edge.
     PlaneFitConfig fit;
     fit.max_neighbour_distance = 3.0 * spacing;
+    fit.residual_tilt_floor = config_.normal_refit_residual_floor;
     if (!fit_plane_normal(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal, &tilt_variance)) {
       return;
     }
   }
-  // A fit from noisy neighbours can know less than the normal already has: keep the better one.
-  if (config_.model_normal_uncertainty && !(tilt_variance < normal_tilt_variance(i))) return;
+  if (config_.model_normal_uncertainty &&
+      !normal_refit_replaces(normal_source(i), normal_tilt_variance(i), source, tilt_variance,
+                             config_.refit_supersedes_spawn_fit)) {
+    return;
+  }
   p.normal_world = normal;
   set_normal_tilt_variance(i, tilt_variance, source);
 }
@@ -989,6 +995,15 @@ void ImageFrontEnd::set_normal_tilt_variance(PrimitiveIndex i, double variance, 
   if (i >= kFrontEndMaxPrimitives) return;
   normal_tilt_variance_[i] = static_cast<float>(variance);
   normal_source_[i] = source;
+}
+
+bool normal_refit_replaces(NormalSource current, double current_tilt_variance, NormalSource fit,
+                           double fit_tilt_variance, bool refit_supersedes_spawn_fit) {
+  if (refit_supersedes_spawn_fit && fit == NormalSource::kRefit &&
+      (current == NormalSource::kSpawnFit || current == NormalSource::kFacingPrior)) {
+    return true;
+  }
+  return fit_tilt_variance < current_tilt_variance;
 }
 
 NormalSource ImageFrontEnd::normal_source(PrimitiveIndex i) const {

@@ -47,7 +47,9 @@ bool fit_plane(const Eigen::Vector3d& centre, const Eigen::Matrix3d* centre_Sigm
     const double predicted = with_sigmas ? n.dot(sigma_sum * n) / count : 0.0;
     const double residual = count > 3.0 ? count * lambda(0) / (count - 3.0) : lambda(1);
     const double s2 = predicted > residual ? predicted : residual;
-    *tilt_variance = s2 / (count * lambda(1));
+    const double averaged = s2 / (count * lambda(1));
+    const double floor = config.residual_tilt_floor * residual / lambda(1);
+    *tilt_variance = averaged > floor ? averaged : floor;
   }
   *normal = n.cast<float>();
   return true;

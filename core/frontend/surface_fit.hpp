@@ -13,6 +13,12 @@ struct PlaneFitConfig {
   std::size_t min_neighbours = 3;  // besides the centre
   double max_neighbour_distance = 1.0;  // scene units; farther neighbours lie across a depth edge
   double max_flatness = 0.1;  // smallest / middle eigenvalue of the scatter: above it, not a plane
+  // The tilt variance is at least this times the fit's residual variance over the in-plane spread along the
+  // narrower axis: what one point's residual says, not the average over all of them. Neighbours' errors
+  // share views and a curved surface's residual is no noise, so neither averages away; without the floor
+  // the bunny's refits claimed 2-4 times too little and a mission's 9 times (EXPERIMENTS.md, "Session 25").
+  // 0: off.
+  double residual_tilt_floor = 1.0;
 };
 
 // The normal of the plane through centre and the neighbours (closer than max_neighbour_distance),
@@ -24,7 +30,8 @@ bool fit_plane_normal(const Eigen::Vector3d& centre, Span<const Eigen::Vector3d>
 // The same fit with the normal's uncertainty: *tilt_variance (rad^2, each of the two tilt axes) bounds the
 // covariance of the normal's tilt, s^2 / (sum over the points of their in-plane spread along the narrower
 // axis), where s^2 is the larger of the points' mean out-of-plane variance n^T Sigma n and the fit's
-// residual variance. neighbour_Sigmas has one covariance per neighbour (false otherwise).
+// residual variance, and at least residual_tilt_floor times the residual variance over one point's spread.
+// neighbour_Sigmas has one covariance per neighbour (false otherwise).
 bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
                       Span<const Eigen::Vector3d> neighbours, Span<const Eigen::Matrix3d> neighbour_Sigmas,
                       const Eigen::Vector3d& camera_world, const PlaneFitConfig& config, Eigen::Vector3f* normal,

@@ -109,6 +109,14 @@ int run_cli(int argc, const char* const* argv) {
                  "focal length in px per axis: 1.7e-4 is 0.098 px at the paper's 640x480 camera)")
       ->check(CLI::Range(1e-6, 9e-3))
       ->capture_default_str();
+  app.add_option("--refit-residual-floor", options.normal_refit_residual_floor,
+                 "image front end: a normal refit's tilt variance is at least this times its residual variance "
+                 "over its points' spread (0: off)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
+               "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
+               "coverage, a 640x480 plane's NEES below its band; default off)");
   // The floor was a fixed pixel figure until session 12: an old script gets told what replaced it.
   double retired_floor_px = 0.0;
   CLI::Option* retired_floor = app.add_option("--match-floor-px", retired_floor_px)->group("");

@@ -49,6 +49,9 @@ struct MissionOptions {
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
   double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;  // FrontEndConfig::inverse_warp_ncc_min
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
+  // Image front end: FrontEndConfig::normal_refit_residual_floor (0: off) and refit_supersedes_spawn_fit.
+  double normal_refit_residual_floor = FrontEndConfig{}.normal_refit_residual_floor;
+  bool refit_supersedes_spawn_fit = FrontEndConfig{}.refit_supersedes_spawn_fit;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and

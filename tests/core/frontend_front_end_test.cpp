@@ -1191,3 +1191,31 @@ TEST_CASE("normal_source tells where each normal came from: the spawn's plane fi
   CHECK(g_front_end.normal_source(first) == NormalSource::kFacingPrior);
   CHECK(g_front_end.normal_source(static_cast<PrimitiveIndex>(kFrontEndMaxPrimitives)) == NormalSource::kFacingPrior);
 }
+
+TEST_CASE("a plane fit replaces a normal that claims more; with refit_supersedes_spawn_fit a refit always replaces the spawn's") {
+  // The rule without the switch: the smaller tilt variance wins, whatever the sources.
+  CHECK(normal_refit_replaces(NormalSource::kSpawnFit, 0.01, NormalSource::kRefit, 0.005, false));
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kSpawnFit, 0.01, NormalSource::kRefit, 0.02, false));
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kRefit, 0.01, NormalSource::kRefit, 0.01, false));
+  // With it: a refit takes the place of the spawn's fit and of the facing prior even when it claims more...
+  CHECK(normal_refit_replaces(NormalSource::kSpawnFit, 0.001, NormalSource::kRefit, 0.02, true));
+  CHECK(normal_refit_replaces(NormalSource::kFacingPrior, 0.25, NormalSource::kRefit, 0.3, true));
+  // ... but not of an earlier refit, a photometric or adopted normal, and a spawn fit gets no such right.
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kRefit, 0.001, NormalSource::kRefit, 0.02, true));
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kPhotometric, 0.001, NormalSource::kRefit, 0.02, true));
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kAdopted, 1e-4, NormalSource::kRefit, 0.02, true));
+  CHECK_FALSE(normal_refit_replaces(NormalSource::kFacingPrior, 0.25, NormalSource::kSpawnFit, 0.3, true));
+  CHECK(normal_refit_replaces(NormalSource::kFacingPrior, 0.25, NormalSource::kSpawnFit, 0.01, true));
+}
+
+TEST_CASE("configure refuses a negative or non-finite refit residual floor") {
+  FrontEndConfig bad;
+  bad.normal_refit_residual_floor = -0.5;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.normal_refit_residual_floor = std::numeric_limits<double>::quiet_NaN();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  CHECK_FALSE(g_front_end.configured());
+  FrontEndConfig off;
+  off.normal_refit_residual_floor = 0.0;
+  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), off)));
+}
