@@ -16,9 +16,9 @@ struct PlaneFitConfig {
   // The tilt variance is at least this times the fit's residual variance over the in-plane spread along the
   // narrower axis: what one point's residual says, not the average over all of them. Neighbours' errors
   // share views and a curved surface's residual is no noise, so neither averages away; without the floor
-  // the bunny's refits claimed 2-4 times too little and a mission's 9 times (EXPERIMENTS.md, "Session 25").
-  // 0: off.
-  double residual_tilt_floor = 1.0;
+  // the bunny's refits claim 2-4 times too little and a mission's 9 times (EXPERIMENTS.md, "Session 25").
+  // 0: off (the default: FrontEndConfig::normal_refit_residual_floor says what it does to the missions).
+  double residual_tilt_floor = 0.0;
 };
 
 // The normal of the plane through centre and the neighbours (closer than max_neighbour_distance),

@@ -111,7 +111,7 @@ int run_cli(int argc, const char* const* argv) {
       ->capture_default_str();
   app.add_option("--refit-residual-floor", options.normal_refit_residual_floor,
                  "image front end: a normal refit's tilt variance is at least this times its residual variance "
-                 "over its points' spread (0: off)")
+                 "over its points' spread (0: off, the default; 1: more verified coverage at 600 images, less at 270)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,

@@ -1215,7 +1215,7 @@ TEST_CASE("configure refuses a negative or non-finite refit residual floor") {
   bad.normal_refit_residual_floor = std::numeric_limits<double>::quiet_NaN();
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
   CHECK_FALSE(g_front_end.configured());
-  FrontEndConfig off;
-  off.normal_refit_residual_floor = 0.0;
-  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), off)));
+  FrontEndConfig on;
+  on.normal_refit_residual_floor = 1.0;
+  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
 }

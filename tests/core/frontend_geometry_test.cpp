@@ -216,7 +216,7 @@ TEST_CASE("a plane fit's tilt variance has a floor from its residual: a curved s
   CHECK(angle * angle > 40.0 * averaged);
   CHECK(floored == Approx(13.0 * averaged).epsilon(1e-9));
   CHECK(angle * angle < 10.0 * floored);
-  CHECK(PlaneFitConfig{}.residual_tilt_floor == 1.0);  // on by default
+  CHECK(PlaneFitConfig{}.residual_tilt_floor == 0.0);  // off by default (FrontEndConfig::normal_refit_residual_floor)
 }
 
 TEST_CASE("a tilted normal moves the match as the warp covariance predicts") {
