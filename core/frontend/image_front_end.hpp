@@ -491,8 +491,8 @@ class ImageFrontEnd final : public MeasurementSource {
                                   std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours>* out,
                                   std::array<Eigen::Matrix3d, kFrontEndMaxNormalFitNeighbours>* sigmas = nullptr) const;
   // Refits primitive i's normal from the neighbours of cell (cx, cy) (spacing: the cells' spacing at its
-  // depth, scene units; max_sigma: the neighbours' largest sigma_bound); keeps the fit when its tilt
-  // variance is below the current one. The camera orients the normal; along_rays picks
+  // depth, scene units; max_sigma: the neighbours' largest sigma_bound); keeps the fit when
+  // normal_refit_replaces says so. The camera orients the normal; along_rays picks
   // fit_plane_normal_along_rays (the neighbours' errors along that camera's rays), else fit_plane_normal;
   // source says which fit it is (kSpawnFit or kRefit).
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
