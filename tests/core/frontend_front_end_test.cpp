@@ -1157,7 +1157,7 @@ TEST_CASE("adopt_normal refuses a dead slot, a non-finite or non-unit normal and
   CHECK(g_front_end.adopt_normal(alive, unit, 1e-3, g_pool) == Status::kNotFound);
 }
 
-TEST_CASE("normal_source tells where each normal came from: the spawn's plane fit, then an adopted one; forget resets") {
+TEST_CASE("normal_source tells where each normal came from: the spawn's plane fit, then an adopted one, reset by forget") {
   Scene scene;
   initialize_on_plane(scene, first_view(), second_view());
   std::size_t alive = 0;
@@ -1192,7 +1192,7 @@ TEST_CASE("normal_source tells where each normal came from: the spawn's plane fi
   CHECK(g_front_end.normal_source(static_cast<PrimitiveIndex>(kFrontEndMaxPrimitives)) == NormalSource::kFacingPrior);
 }
 
-TEST_CASE("a plane fit replaces a normal that claims more; with refit_supersedes_spawn_fit a refit always replaces the spawn's") {
+TEST_CASE("a plane fit replaces a normal that claims more, and with refit_supersedes_spawn_fit a refit always replaces the spawn's") {
   // The rule without the switch: the smaller tilt variance wins, whatever the sources.
   CHECK(normal_refit_replaces(NormalSource::kSpawnFit, 0.01, NormalSource::kRefit, 0.005, false));
   CHECK_FALSE(normal_refit_replaces(NormalSource::kSpawnFit, 0.01, NormalSource::kRefit, 0.02, false));
