@@ -161,7 +161,7 @@ Status FrontEndConfig::validate() const {
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
-                           normal_refit_residual_floor};
+                           normal_refit_residual_floor, normal_spawn_residual_floor};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -184,7 +184,7 @@ Status FrontEndConfig::validate() const {
   if (normal_fit_ring_cells < 1 || normal_fit_ring_cells > kFrontEndMaxNormalFitRing) return Status::kInvalidArgument;
   if (!(direct_fit_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!(confirm_min_depth_information >= 0.0)) return Status::kInvalidArgument;
-  if (!(normal_refit_residual_floor >= 0.0)) return Status::kInvalidArgument;
+  if (!(normal_refit_residual_floor >= 0.0) || !(normal_spawn_residual_floor >= 0.0)) return Status::kInvalidArgument;
   if (!(depth_min > 0.0) || !(depth_max > depth_min)) return Status::kInvalidArgument;
   if (!(epipolar_guard_fraction >= 0.0 && epipolar_guard_fraction <= kMaxEpipolarGuardFraction)) {
     return Status::kInvalidArgument;
@@ -935,6 +935,7 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
     RayPlaneFitConfig fit;
     fit.max_neighbour_distance =
         config_.normal_fit_ring_cells * std::sqrt(2.0) * spacing / kFootprintMinCosIncidence;
+    fit.residual_tilt_floor = config_.normal_spawn_residual_floor;
     if (!fit_plane_normal_along_rays(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal,
                                      &tilt_variance)) {
       return;

@@ -198,6 +198,16 @@ struct FrontEndConfig {
   // (standard error 0.5, 17 of 22), but the 640x480 plane's NEES falls below its band (all 2.913 in
   // [2.943, 3.057]): the consistency test of issue 5 item 6 and the missions disagree.
   bool refit_supersedes_spawn_fit = false;
+  // The spawn's plane fit along the rays claims a tilt variance of at least this times its residual
+  // variance over its points' in-plane spread (RayPlaneFitConfig::residual_tilt_floor; 0: off). >= 0. A
+  // new primitive beside tracked neighbours gets a plane through well-known points: its chi^2 scaling sees
+  // no noise, while the surface at the patch's scale differs from that plane; in a 600-image mission the
+  // spawn's fits were 14 degrees off claiming 3.6 (angle^2 / variance 23). Off by default: at 1 with
+  // normal_refit_residual_floor at 1, over 22 missions at 600 images verified coverage +2.8 points (standard
+  // error 0.5, 20 of 22), but at 270 images coverage -3.7 (1.5), verified coverage -1.7 (1.4) and the
+  // confirmed primitives' RMS error +0.014 (0.006); alone at 270, coverage -5.3 (1.8) (EXPERIMENTS.md,
+  // "Session 26").
+  double normal_spawn_residual_floor = 0.0;
   // The neighbours a normal's local plane fit reads (at spawn and at each refit): the nearest primitive of
   // every cell within this many cells, 1..kFrontEndMaxNormalFitRing (2: the 5 x 5 cells around, 24
   // neighbours). 1 (the 8 adjacent cells) left a third of the bunny's tracked primitives at 640x480 with

@@ -106,6 +106,40 @@ bool ray_plane_fit(const RayPoint* points, const bool* used, std::size_t count, 
   return std::isfinite(fit->chi2);
 }
 
+// The fit's residual variance (out of the plane q . X' = 1, 3 parameters fitted) over the in-plane spread
+// of its points along the narrower axis: the tilt one point's residual says, which neither the points' own
+// noise nor their count bounds (PlaneFitConfig::residual_tilt_floor's form). 0 when it is not defined.
+double residual_over_spread(const RayPoint* points, const bool* used, std::size_t count, const Eigen::Vector3d& q) {
+  const double q_norm = q.norm();
+  const Eigen::Vector3d n = q / q_norm;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double residual_sum = 0.0;
+  std::size_t in_fit = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!used[k]) continue;
+    const Eigen::Vector3d X = points[k].ray / points[k].inverse_distance;  // camera-relative
+    const double h = (q.dot(X) - 1.0) / q_norm;
+    mean += X;
+    residual_sum += h * h;
+    ++in_fit;
+  }
+  if (in_fit <= 3) return 0.0;
+  mean /= static_cast<double>(in_fit);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!used[k]) continue;
+    Eigen::Vector3d d = points[k].ray / points[k].inverse_distance - mean;
+    d -= n * n.dot(d);
+    scatter += d * d.transpose();
+  }
+  scatter /= static_cast<double>(in_fit);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(scatter, Eigen::EigenvaluesOnly);
+  if (spread.info() != Eigen::Success) return 0.0;
+  const double lambda_1 = spread.eigenvalues()(1);  // (0) is the normal's, zero after the projection
+  const double ratio = residual_sum / (static_cast<double>(in_fit) - 3.0) / lambda_1;
+  return lambda_1 > 0.0 && std::isfinite(ratio) ? ratio : 0.0;
+}
+
 }  // namespace
 
 bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Matrix3d& centre_Sigma,
@@ -165,7 +199,11 @@ bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Mat
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(0.5 * (covariance + covariance.transpose()),
                                                                Eigen::EigenvaluesOnly);
   if (eigen.info() != Eigen::Success) return false;
-  const double variance = eigen.eigenvalues()(2);
+  double variance = eigen.eigenvalues()(2);
+  if (config.residual_tilt_floor > 0.0) {
+    const double floor = config.residual_tilt_floor * residual_over_spread(points.data(), used.data(), count, fit.q);
+    if (floor > variance) variance = floor;
+  }
   if (!(variance > 0.0) || !std::isfinite(variance) || !n.allFinite()) return false;
   if (n.dot(camera_world - centre) < 0.0) n = -n;
   *normal = n.cast<float>();

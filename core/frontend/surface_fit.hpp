@@ -46,7 +46,8 @@ bool fit_plane_normal(const Eigen::Vector3d& centre, const Eigen::Matrix3d& cent
 // scatter: above max_chi2_per_dof, the neighbour with the largest weighted residual is dropped and the
 // fit repeated, up to max_dropped times; still above, false. *tilt_variance is the largest eigenvalue
 // of the unit normal's covariance, scaled by chi^2 / dof when that exceeds 1 (curvature counts like
-// noise). Unlike fit_plane_normal's scatter-ratio test, a noisy but planar neighbourhood gives a normal
+// noise), and at least residual_tilt_floor times the residual over one point's spread. Unlike
+// fit_plane_normal's scatter-ratio test, a noisy but planar neighbourhood gives a normal
 // with a large variance instead of none. False (outputs untouched) with fewer than min_neighbours
 // neighbours within max_neighbour_distance, more than kMaxRayPlaneFitPoints points, a neighbour_Sigmas
 // count other than the neighbours', a non-finite centre, or a singular fit.
@@ -55,6 +56,12 @@ struct RayPlaneFitConfig {
   double max_neighbour_distance = 1.0;  // scene units
   double max_chi2_per_dof = 4.0;
   std::size_t max_dropped = 4;
+  // The tilt variance is at least this times the fit's residual variance (distances out of the plane, the
+  // centre's too) over the in-plane spread along the narrower axis, as PlaneFitConfig::residual_tilt_floor:
+  // the chi^2 scaling reads the residuals against the points' noise, so a neighbourhood of well-known points
+  // (a new primitive beside tracked ones) that is curved or rough at the patch's scale still claims a tilt
+  // known to a degree or two. 0: off (the default; FrontEndConfig::normal_spawn_residual_floor).
+  double residual_tilt_floor = 0.0;
 };
 inline constexpr std::size_t kMaxRayPlaneFitPoints = 64;  // centre included
 

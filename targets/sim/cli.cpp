@@ -114,6 +114,12 @@ int run_cli(int argc, const char* const* argv) {
                  "over its points' spread (0: off, the default; 1: more verified coverage at 600 images, less at 270)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  app.add_option("--spawn-residual-floor", options.normal_spawn_residual_floor,
+                 "image front end: a new primitive's plane fit claims a tilt variance of at least this times its "
+                 "residual variance over its points' spread (0: off, the default; 1, with --refit-residual-floor 1: "
+                 "more verified coverage at 600 images, less at 270)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
                "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
                "coverage, a 640x480 plane's NEES below its band; default off)");

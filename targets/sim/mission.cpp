@@ -230,6 +230,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
     fc.normal_refit_residual_floor = options.normal_refit_residual_floor;
     fc.refit_supersedes_spawn_fit = options.refit_supersedes_spawn_fit;
+    fc.normal_spawn_residual_floor = options.normal_spawn_residual_floor;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;
     fc.erase_provisional_rejected = options.erase_provisional_rejected;

@@ -52,6 +52,8 @@ struct MissionOptions {
   // Image front end: FrontEndConfig::normal_refit_residual_floor (0: off) and refit_supersedes_spawn_fit.
   double normal_refit_residual_floor = FrontEndConfig{}.normal_refit_residual_floor;
   bool refit_supersedes_spawn_fit = FrontEndConfig{}.refit_supersedes_spawn_fit;
+  // Image front end: FrontEndConfig::normal_spawn_residual_floor (0: off).
+  double normal_spawn_residual_floor = FrontEndConfig{}.normal_spawn_residual_floor;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and

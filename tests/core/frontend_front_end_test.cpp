@@ -1208,14 +1208,18 @@ TEST_CASE("a plane fit replaces a normal that claims more, and with refit_supers
   CHECK(normal_refit_replaces(NormalSource::kFacingPrior, 0.25, NormalSource::kSpawnFit, 0.01, true));
 }
 
-TEST_CASE("configure refuses a negative or non-finite refit residual floor") {
-  FrontEndConfig bad;
-  bad.normal_refit_residual_floor = -0.5;
-  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
-  bad.normal_refit_residual_floor = std::numeric_limits<double>::quiet_NaN();
-  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
-  CHECK_FALSE(g_front_end.configured());
-  FrontEndConfig on;
-  on.normal_refit_residual_floor = 1.0;
-  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
+TEST_CASE("configure refuses a negative or non-finite refit or spawn residual floor") {
+  for (double FrontEndConfig::*floor :
+       {&FrontEndConfig::normal_refit_residual_floor, &FrontEndConfig::normal_spawn_residual_floor}) {
+    FrontEndConfig bad;
+    bad.*floor = -0.5;
+    CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+    bad.*floor = std::numeric_limits<double>::quiet_NaN();
+    CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+    CHECK_FALSE(g_front_end.configured());
+    FrontEndConfig on;
+    on.*floor = 1.0;
+    CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
+  }
+  CHECK(FrontEndConfig{}.normal_spawn_residual_floor == 0.0);
 }
