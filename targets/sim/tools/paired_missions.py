@@ -28,6 +28,10 @@ FIGURES = [
     ("model_coverage", "model coverage %", 100.0),
     ("mean_sigma", "avg sigma", 1.0),
     ("accuracy_rms_confirmed", "RMS confirmed", 1.0),
+    # The missions' own consistency: of the precise primitives (sigma below the target), the share within 3
+    # of their sigmas of the surface (0.997 for a consistent filter; sim_hal/README.md (f)).
+    (lambda run: run["precise_verified"] / run["precise"] if run.get("precise") else None,
+     "precise verified %", 100.0),
     ("gross", "more than a unit off", 1.0),
     ("primitives", "primitives", 1.0),
     ("nbv_iterations", "NBV iterations", 1.0),
@@ -76,11 +80,17 @@ def read_summary(path):
         return json.load(f)
 
 
+def figure(run, key):
+    """A summary.json field, or a figure derived from the run's fields (None when it has none)."""
+    return key(run) if callable(key) else run.get(key)
+
+
 def paired_table(budget, base_runs, variant_runs):
     lines = [f"budget {budget}: {len(base_runs)} spacings (mean base -> variant, paired difference, standard "
              "error, runs up)"]
     for key, name, scale in FIGURES:
-        pairs = [(b[key] * scale, v[key] * scale) for b, v in zip(base_runs, variant_runs) if key in b and key in v]
+        pairs = [(figure(b, key) * scale, figure(v, key) * scale) for b, v in zip(base_runs, variant_runs)
+                 if figure(b, key) is not None and figure(v, key) is not None]
         if not pairs:
             continue
         n = len(pairs)
