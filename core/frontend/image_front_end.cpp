@@ -936,6 +936,7 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
     fit.max_neighbour_distance =
         config_.normal_fit_ring_cells * std::sqrt(2.0) * spacing / kFootprintMinCosIncidence;
     fit.residual_tilt_floor = config_.normal_spawn_residual_floor;
+    fit.floored_claim_limit = config_.facing_normal_tilt_variance;
     if (!fit_plane_normal_along_rays(p.X_world, p.Sigma_world, points, covariances, camera_world, fit, &normal,
                                      &tilt_variance)) {
       return;

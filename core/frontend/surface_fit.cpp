@@ -203,6 +203,7 @@ bool fit_plane_normal_along_rays(const Eigen::Vector3d& centre, const Eigen::Mat
   if (config.residual_tilt_floor > 0.0) {
     const double floor = config.residual_tilt_floor * residual_over_spread(points.data(), used.data(), count, fit.q);
     if (floor > variance) variance = floor;
+    if (variance >= config.floored_claim_limit) variance = 0.99 * config.floored_claim_limit;
   }
   if (!(variance > 0.0) || !std::isfinite(variance) || !n.allFinite()) return false;
   if (n.dot(camera_world - centre) < 0.0) n = -n;

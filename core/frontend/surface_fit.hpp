@@ -2,6 +2,7 @@
 // A primitive's surface: its normal from a local plane fit of neighbouring primitives, and its radius
 // from the pixel footprint at its depth.
 #include <cstddef>
+#include <limits>
 
 #include <Eigen/Core>
 
@@ -62,6 +63,11 @@ struct RayPlaneFitConfig {
   // (a new primitive beside tracked ones) that is curved or rough at the patch's scale still claims a tilt
   // known to a degree or two. 0: off (the default; FrontEndConfig::normal_spawn_residual_floor).
   double residual_tilt_floor = 0.0;
+  // With the floor on, a claim at or above this (rad^2) is lowered to 0.99 of it: the front end passes the
+  // facing prior's variance, since a normal replaces one only by claiming less, and a fitted normal is
+  // still far closer to the surface's than the prior (5-17 degrees against 30-60, EXPERIMENTS.md, "Session
+  // 26"); without the limit the floor left the 60-degree 640x480 plane's primitives on the prior (153 -> 418).
+  double floored_claim_limit = std::numeric_limits<double>::infinity();
 };
 inline constexpr std::size_t kMaxRayPlaneFitPoints = 64;  // centre included
 

@@ -641,10 +641,12 @@ TEST_CASE("a plane fit along the rays has a floor from its residual: well-known 
   }
   const Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   const Eigen::Matrix3d centre_Sigma = along_ray(centre, 0.3);
-  auto fit = [&](double floor, Eigen::Vector3f* normal, double* tilt_variance) {
+  auto fit = [&](double floor, Eigen::Vector3f* normal, double* tilt_variance,
+                 double limit = std::numeric_limits<double>::infinity()) {
     RayPlaneFitConfig config;
     config.max_neighbour_distance = 2.0;  // every point in the fit
     config.residual_tilt_floor = floor;
+    config.floored_claim_limit = limit;
     return fit_plane_normal_along_rays(centre, centre_Sigma, Span<const Eigen::Vector3d>(points.data(), 12),
                                        Span<const Eigen::Matrix3d>(sigmas.data(), 12), camera, config, normal,
                                        tilt_variance);
@@ -672,6 +674,19 @@ TEST_CASE("a plane fit along the rays has a floor from its residual: well-known 
   CHECK(floored > 10.0 * averaged);
   CHECK(angle * angle < 10.0 * floored);
   CHECK(RayPlaneFitConfig{}.residual_tilt_floor == 0.0);  // off by default (FrontEndConfig::normal_spawn_residual_floor)
+  // A floored claim at or above the limit (the front end's facing prior) becomes 0.99 of it, so the fit
+  // still replaces the prior; below the limit, and without the floor, the limit changes nothing.
+  Eigen::Vector3f limited_normal;
+  double limited = 0.0;
+  REQUIRE(fit(1.0, &limited_normal, &limited, 0.5 * floored));
+  CHECK(limited == 0.99 * (0.5 * floored));
+  CHECK((limited_normal - without_floor).norm() == 0.0f);
+  REQUIRE(fit(1.0, &limited_normal, &limited, floored));
+  CHECK(limited == 0.99 * floored);
+  REQUIRE(fit(1.0, &limited_normal, &limited, 2.0 * floored));
+  CHECK(limited == floored);
+  REQUIRE(fit(0.0, &limited_normal, &limited, 0.5 * averaged));
+  CHECK(limited == averaged);
 }
 
 TEST_CASE("a plane fit along the rays drops a neighbour across a depth edge and refuses bad input") {
