@@ -202,11 +202,13 @@ struct FrontEndConfig {
   // variance over its points' in-plane spread (RayPlaneFitConfig::residual_tilt_floor; 0: off). >= 0. A
   // new primitive beside tracked neighbours gets a plane through well-known points: its chi^2 scaling sees
   // no noise, while the surface at the patch's scale differs from that plane; in a 600-image mission the
-  // spawn's fits were 14 degrees off claiming 3.6 (angle^2 / variance 23). Off by default: at 1 with
-  // normal_refit_residual_floor at 1, over 22 missions at 600 images verified coverage +2.8 points (standard
-  // error 0.5, 20 of 22), but at 270 images coverage -3.7 (1.5), verified coverage -1.7 (1.4) and the
-  // confirmed primitives' RMS error +0.014 (0.006); alone at 270, coverage -5.3 (1.8) (EXPERIMENTS.md,
-  // "Session 26").
+  // spawn's fits were 14 degrees off claiming 3.6 (angle^2 / variance 23). A floored claim stays below
+  // facing_normal_tilt_variance (RayPlaneFitConfig::floored_claim_limit), so a fit still replaces the prior.
+  // Off by default: at 1 with normal_refit_residual_floor at 1, over 22 missions at 600 images verified
+  // coverage +2.6 points (standard error 0.5, 21 of 22), at 270 images level (+0.0, 1.2) with coverage
+  // -1.9 (1.3); the 320x240 bunny's tracked NEES 6.01 -> 4.83, but the 640x480 plane's rises out of its
+  // band (2.963 -> 3.193). Alone: 600 images +1.4 (0.6), 270 coverage -3.3 (1.8), the 640x480 plane in its
+  // band (3.000) and the bunny's rows 5.11 / 5.46 (EXPERIMENTS.md, "Session 26").
   double normal_spawn_residual_floor = 0.0;
   // The neighbours a normal's local plane fit reads (at spawn and at each refit): the nearest primitive of
   // every cell within this many cells, 1..kFrontEndMaxNormalFitRing (2: the 5 x 5 cells around, 24

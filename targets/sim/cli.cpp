@@ -116,8 +116,8 @@ int run_cli(int argc, const char* const* argv) {
       ->capture_default_str();
   app.add_option("--spawn-residual-floor", options.normal_spawn_residual_floor,
                  "image front end: a new primitive's plane fit claims a tilt variance of at least this times its "
-                 "residual variance over its points' spread (0: off, the default; 1, with --refit-residual-floor 1: "
-                 "more verified coverage at 600 images, less at 270)")
+                 "residual variance over its points' spread, below the facing prior's (0: off, the default; 1, with "
+                 "--refit-residual-floor 1: more verified coverage at 600 images, level at 270)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
