@@ -109,7 +109,8 @@ bool ray_plane_fit(const RayPoint* points, const bool* used, std::size_t count, 
 // The fit's residual variance (out of the plane q . X' = 1, 3 parameters fitted) over the in-plane spread
 // of its points along the narrower axis: the tilt one point's residual says, which neither the points' own
 // noise nor their count bounds (PlaneFitConfig::residual_tilt_floor's form). 0 when it is not defined.
-double residual_over_spread(const RayPoint* points, const bool* used, std::size_t count, const Eigen::Vector3d& q) {
+// Not inlined: its Eigen temporaries in the caller's frame outgrow the core's 16 KB frame limit under ASan.
+[[gnu::noinline]] double residual_over_spread(const RayPoint* points, const bool* used, std::size_t count, const Eigen::Vector3d& q) {
   const double q_norm = q.norm();
   const Eigen::Vector3d n = q / q_norm;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
