@@ -174,10 +174,12 @@ TEST_CASE("a plane fit's tilt variance follows the neighbours' covariances and i
                                &tilt_variance));
 }
 
-TEST_CASE("a plane fit's tilt variance has a floor from its residual: a curved surface's bias does not average away") {
-  // Points on a sphere of radius 3 about (3, 0, 0), the centre at the origin (true normal: x), neighbours on
-  // one side only (y >= 0.3): the fitted plane is tilted by the curvature, an error no number of points
-  // averages away, while the averaged bound shrinks with the count.
+namespace {
+
+// Twelve points on a sphere of radius 3 about (3, 0, 0), whose normal at the origin is x, all on one side
+// of it (y >= 0.3, a 0.3 grid): a plane through them is tilted by the curvature, an error no number of
+// points averages away.
+std::array<Eigen::Vector3d, 12> one_sided_sphere_points() {
   const double radius = 3.0;
   std::array<Eigen::Vector3d, 12> points;
   int count = 0;
@@ -188,6 +190,15 @@ TEST_CASE("a plane fit's tilt variance has a floor from its residual: a curved s
       points[count++] = Eigen::Vector3d(radius - std::sqrt(radius * radius - y * y - z * z), y, z);
     }
   }
+  return points;
+}
+
+}  // namespace
+
+TEST_CASE("a plane fit's tilt variance has a floor from its residual: a curved surface's bias does not average away") {
+  // The centre at the origin, its neighbours on one side of the sphere (one_sided_sphere_points): the fit's
+  // error stays while the averaged bound shrinks with the count.
+  const std::array<Eigen::Vector3d, 12> points = one_sided_sphere_points();
   const Eigen::Matrix3d Sigma = 1e-8 * Eigen::Matrix3d::Identity();
   std::array<Eigen::Matrix3d, 12> sigmas;
   sigmas.fill(Sigma);
@@ -617,28 +628,18 @@ TEST_CASE("a plane fit along the rays has the tilt variance its normal scatters 
 }
 
 TEST_CASE("a plane fit along the rays has a floor from its residual: well-known neighbours on a curved surface") {
-  // A new primitive at the origin (known to 0.3 along its ray) beside tracked neighbours known to 0.01, all
-  // on a sphere of radius 3 about (3, 0, 0) (true normal at the centre: x), the neighbours on one side only
-  // (y >= 0.3): the plane through them is tilted by the curvature, and its chi^2 does not show it as noise.
-  const double radius = 3.0;
+  // A new primitive at the origin (known to 0.3 along its ray) beside tracked neighbours known to 0.01 on one
+  // side of the sphere (one_sided_sphere_points): the plane through them is tilted by the curvature, and
+  // its chi^2 does not show it as noise.
   const Eigen::Vector3d camera(-40.0, 0.0, 0.0);
-  std::array<Eigen::Vector3d, 12> points;
+  const std::array<Eigen::Vector3d, 12> points = one_sided_sphere_points();
   std::array<Eigen::Matrix3d, 12> sigmas;
   auto along_ray = [&](const Eigen::Vector3d& X, double sigma) {
     const Eigen::Vector3d ray = (X - camera).normalized();
     return Eigen::Matrix3d(sigma * sigma * ray * ray.transpose() +
                            1e-6 * (Eigen::Matrix3d::Identity() - ray * ray.transpose()));
   };
-  int count = 0;
-  for (int iy = 1; iy <= 3; ++iy) {
-    for (int iz = -2; iz <= 1; ++iz) {
-      const double y = 0.3 * iy;
-      const double z = 0.3 * iz;
-      points[count] = Eigen::Vector3d(radius - std::sqrt(radius * radius - y * y - z * z), y, z);
-      sigmas[count] = along_ray(points[count], 0.01);
-      ++count;
-    }
-  }
+  for (std::size_t k = 0; k < points.size(); ++k) sigmas[k] = along_ray(points[k], 0.01);
   const Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   const Eigen::Matrix3d centre_Sigma = along_ray(centre, 0.3);
   auto fit = [&](double floor, Eigen::Vector3f* normal, double* tilt_variance,

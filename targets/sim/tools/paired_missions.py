@@ -89,8 +89,8 @@ def paired_table(budget, base_runs, variant_runs):
     lines = [f"budget {budget}: {len(base_runs)} spacings (mean base -> variant, paired difference, standard "
              "error, runs up)"]
     for key, name, scale in FIGURES:
-        pairs = [(figure(b, key) * scale, figure(v, key) * scale) for b, v in zip(base_runs, variant_runs)
-                 if figure(b, key) is not None and figure(v, key) is not None]
+        values = [(figure(b, key), figure(v, key)) for b, v in zip(base_runs, variant_runs)]
+        pairs = [(b * scale, v * scale) for b, v in values if b is not None and v is not None]
         if not pairs:
             continue
         n = len(pairs)
