@@ -161,7 +161,7 @@ Status FrontEndConfig::validate() const {
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
-                           normal_refit_residual_floor, normal_spawn_residual_floor};
+                           normal_refit_residual_floor, normal_spawn_residual_floor, max_match_sigma_rad};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -197,6 +197,7 @@ Status FrontEndConfig::validate() const {
   if (!(occlusion_sigmas >= 0.0) || !finite_positive(match_sigma_floor_rad) || !(match_sigma_floor_rad < 0.01)) {
     return Status::kInvalidArgument;
   }
+  if (!(max_match_sigma_rad >= 0.0 && max_match_sigma_rad < 0.01)) return Status::kInvalidArgument;
   if (!(facing_normal_tilt_variance >= 0.0) || !(photometric_normal_min_tilt_variance >= 0.0)) {
     return Status::kInvalidArgument;
   }
@@ -550,8 +551,6 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
                                       &observed, &fit_covariance);
     }
     if (!inverse_warped) correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
-    ++report.matched;
-    ++stats_.tracks_matched;
     EkfConfig ekf = config_.ekf;
     CommonObservationError common;
     // Only a primitive whose patch noise was recorded at its creation splits the fit covariance.
@@ -565,6 +564,14 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
+    if (match_too_uncertain(ekf.R_px2, template_noise ? &common : nullptr)) {
+      ++report.failed_matches;
+      ++stats_.track_failures.too_uncertain;
+      reject_observation(i, centre_cell, pool, report, beyond_search);
+      continue;
+    }
+    ++report.matched;
+    ++stats_.tracks_matched;
     // A provisional primitive's prior, to tell whether this update constrained its depth.
     const bool provisional = (p.flags & primitive_flags::kProvisional) != 0;
     const Eigen::Matrix3d Sigma_prior = provisional ? p.Sigma_world : Eigen::Matrix3d::Zero();
@@ -810,6 +817,15 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
     erase_tracked(i, centre_cell, pool, report, &stats_.provisional_erased);
   }
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
+}
+
+bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError* common) const {
+  if (!(config_.max_match_sigma_rad > 0.0)) return false;
+  double variance_sum = R_px2.trace();
+  if (common != nullptr) variance_sum += (common->B * common->covariance_px2 * common->B.transpose()).trace();
+  const double limit_px = config_.max_match_sigma_rad * focal_mean(intrinsics_);
+  // A NaN covariance is refused too: nothing can weigh it.
+  return !(0.5 * variance_sum <= limit_px * limit_px);
 }
 
 void ImageFrontEnd::count_track_failure(bool template_usable, MatchOutcome outcome) {

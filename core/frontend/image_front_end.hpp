@@ -96,6 +96,16 @@ struct FrontEndConfig {
   // pixel: the plane's per-match NEES read 0.85 at 320x240 and 1.59 at 640x480 with one 0.05 px floor, and
   // 1.02 at 640x480 with this one (EXPERIMENTS.md, "The match floor as an angle (session 12)").
   double match_sigma_floor_rad = 1.7e-4;
+  // A tracked match whose modelled covariance (R with the warp covariance, plus the reference patch's
+  // common error) has a mean standard deviation sqrt(trace / 2) above this angle times the focal length
+  // is not used: counted as TrackFailureCounts::too_uncertain and rejected as a failed match (so an
+  // unconfirmed new primitive is erased). 0: off. In [0, 0.01). Such matches are mostly those of poorly
+  // known normals, and their errors are not Gaussian: in the consistency test the ones with sd >= 0.25 px
+  // read mean NEES / 2 of 14-16 against 1-2 for the rest. At 4.3e-4 (0.25 px at the paper's 640x480
+  // camera) the bunny's mean NEES, all primitives, 7.61 -> 4.09 (320x240, the gross failure gone), and in
+  // the missions the share of precise primitives within 3 sigmas of the surface rises by 7-8 points at
+  // 270 and 600 images, but coverage at 270 images falls (EXPERIMENTS.md, "Session 27").
+  double max_match_sigma_rad = 0.0;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
   // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
   // test it made the plane more conservative (NEES 2.66 -> 2.26) and let a wrong match on the bunny pass
@@ -290,9 +300,10 @@ struct TrackFailureCounts {
   std::uint64_t ambiguous = 0;        // MatchOutcome::kAmbiguous: a second peak within uniqueness_ratio
   std::uint64_t no_room = 0;          // MatchOutcome::kNoRoom: the search left the image
   std::uint64_t no_subpixel = 0;      // MatchOutcome::kNoSubpixel: the photometric fit did not converge
+  std::uint64_t too_uncertain = 0;    // found, but its modelled sd above FrontEndConfig::max_match_sigma_rad
 
   std::uint64_t total() const {
-    return edge_on + template_masked + below_threshold + ambiguous + no_room + no_subpixel;
+    return edge_on + template_masked + below_threshold + ambiguous + no_room + no_subpixel + too_uncertain;
   }
 };
 
@@ -473,6 +484,10 @@ class ImageFrontEnd final : public MeasurementSource {
   // One failed tracked observation into FrontEndStats::track_failures: the template had too few pixels
   // inside the reference patch to search (template_usable false), or the search's outcome.
   void count_track_failure(bool template_usable, MatchOutcome outcome);
+  // Whether a found match is too uncertain to use (FrontEndConfig::max_match_sigma_rad): its modelled
+  // covariance, R_px2 plus the reference patch's common error through B when common is given, has a mean
+  // standard deviation above the limit (or is not a number).
+  bool match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError* common) const;
   // The inverse-warp match of a primitive whose warped template is masked (inverse_warp_masked): true with
   // *observed and *covariance_px2 set, and its normal replaced when the fit knows it better.
   // A maps this image's offsets into the creating image's (the template's warp at the prior normal).

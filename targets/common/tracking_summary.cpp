@@ -14,10 +14,10 @@ std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std
   std::snprintf(line, sizeof line,
                 "tracking: %llu observations predicted in view, %.1f%% matched%s; failed: template masked by the "
                 "warp %.1f%%, below the NCC threshold %.1f%%, ambiguous %.1f%%, no subpixel fit %.1f%%, no room "
-                "%.1f%%, edge-on %.1f%%",
+                "%.1f%%, edge-on %.1f%%, too uncertain %.1f%%",
                 static_cast<unsigned long long>(predicted), share * matched, inverse, share * failures.template_masked,
                 share * failures.below_threshold, share * failures.ambiguous, share * failures.no_subpixel,
-                share * failures.no_room, share * failures.edge_on);
+                share * failures.no_room, share * failures.edge_on, share * failures.too_uncertain);
   return line;
 }
 

@@ -120,6 +120,12 @@ int run_cli(int argc, const char* const* argv) {
                  "--refit-residual-floor 1: more verified coverage at 600 images, level at 270)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  app.add_option("--max-match-sigma-rad", options.max_match_sigma_rad,
+                 "image front end: a tracked match whose modelled standard deviation exceeds this angle (rad; times "
+                 "the focal length: 4.3e-4 is 0.25 px at 640x480) is not used (0: off, the default; 4.3e-4: more "
+                 "consistent primitives, less coverage at 270 images)")
+      ->check(CLI::Range(0.0, 9e-3))
+      ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
                "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
                "coverage, a 640x480 plane's NEES below its band; default off)");

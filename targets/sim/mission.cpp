@@ -231,6 +231,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.normal_refit_residual_floor = options.normal_refit_residual_floor;
     fc.refit_supersedes_spawn_fit = options.refit_supersedes_spawn_fit;
     fc.normal_spawn_residual_floor = options.normal_spawn_residual_floor;
+    fc.max_match_sigma_rad = options.max_match_sigma_rad;
     fc.confirm_min_depth_information = options.confirm_depth_information;
     fc.provisional_max_updates = options.provisional_max_updates;
     fc.erase_provisional_rejected = options.erase_provisional_rejected;

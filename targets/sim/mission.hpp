@@ -54,6 +54,8 @@ struct MissionOptions {
   bool refit_supersedes_spawn_fit = FrontEndConfig{}.refit_supersedes_spawn_fit;
   // Image front end: FrontEndConfig::normal_spawn_residual_floor (0: off).
   double normal_spawn_residual_floor = FrontEndConfig{}.normal_spawn_residual_floor;
+  // Image front end: FrontEndConfig::max_match_sigma_rad (0: off).
+  double max_match_sigma_rad = FrontEndConfig{}.max_match_sigma_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and

@@ -268,7 +268,8 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"track_failures\": {\"template_masked\": " << s.track_failures.template_masked
       << ", \"below_threshold\": " << s.track_failures.below_threshold << ", \"ambiguous\": " << s.track_failures.ambiguous
       << ", \"no_subpixel\": " << s.track_failures.no_subpixel << ", \"no_room\": " << s.track_failures.no_room
-      << ", \"edge_on\": " << s.track_failures.edge_on << "},\n"
+      << ", \"edge_on\": " << s.track_failures.edge_on << ", \"too_uncertain\": " << s.track_failures.too_uncertain
+      << "},\n"
       << "  \"seeds_tried\": " << s.seeds_tried << ",\n"
       << "  \"seeds_matched\": " << s.seeds_matched << ",\n"
       << "  \"seeds_beyond_depth_range\": " << s.seeds_beyond_depth_range << "\n"

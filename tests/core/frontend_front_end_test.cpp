@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -821,9 +822,9 @@ struct CountingObserver final : TrackObserver {
 };
 
 // Initializes on the plane, then updates from the third view with the observer shown, without allocating.
-UpdateReport update_third_view_shown(TrackObserver& observer) {
+UpdateReport update_third_view_shown(TrackObserver& observer, const FrontEndConfig& config = plane_config()) {
   Scene scene;
-  initialize_on_plane(scene, first_view(), second_view());
+  initialize_on_plane(scene, first_view(), second_view(), config);
   const Viewpoint third = third_view();
   const auto c = scene.render(third);
   UpdateReport report;
@@ -889,6 +890,80 @@ TEST_CASE("an observation the observer refuses updates nothing and is counted as
   CHECK(observer.updated == report.updated);
   CHECK(report.gated_outliers >= observer.refused_shown);
   CHECK(observer.updated + report.gated_outliers <= report.matched);
+}
+
+namespace {
+
+// Records the mean standard deviation (px) of every observation shown (fixed capacity, no allocation).
+struct MatchSigmaObserver final : TrackObserver {
+  std::array<double, 4096> sigma_px{};
+  std::array<PrimitiveIndex, 4096> index{};
+  std::size_t count = 0;
+  void on_observation(const TrackedObservation& o) override {
+    if (count == sigma_px.size()) return;
+    sigma_px[count] = std::sqrt(0.5 * o.match_covariance_px2().trace());
+    index[count++] = o.index;
+  }
+};
+
+// The third view's update of the plane with max_match_sigma_rad set, its observations recorded.
+UpdateReport update_third_view_limited(double max_match_sigma_rad, MatchSigmaObserver& observer) {
+  FrontEndConfig config = plane_config();
+  config.max_match_sigma_rad = max_match_sigma_rad;
+  return update_third_view_shown(observer, config);
+}
+
+}  // namespace
+
+TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is not used and is counted too uncertain") {
+  MatchSigmaObserver off;
+  const std::uint64_t uncertain_before = g_front_end.stats().track_failures.too_uncertain;
+  const UpdateReport report_off = update_third_view_limited(0.0, off);
+  REQUIRE(off.count > 100u);
+  REQUIRE(off.count < off.sigma_px.size());
+  CHECK(g_front_end.stats().track_failures.too_uncertain == uncertain_before);
+  // The limit at the observations' median standard deviation: about half of them lie above it.
+  std::array<double, 4096> sorted = off.sigma_px;
+  std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(off.count));
+  const double limit_px = sorted[off.count / 2];
+  std::size_t above = 0;
+  for (std::size_t k = 0; k < off.count; ++k) above += off.sigma_px[k] > limit_px ? 1u : 0u;
+  REQUIRE(above > off.count / 4);
+  const PinholeIntrinsics k = Scene{}.k;
+  const double focal = 0.5 * (k.fx_px + k.fy_px);
+
+  MatchSigmaObserver on;
+  const std::uint64_t before = g_front_end.stats().track_failures.too_uncertain;
+  const UpdateReport report_on = update_third_view_limited(limit_px / focal, on);
+  // Matching does not depend on the other primitives' updates: the refused are exactly those above it,
+  // and the rest reach the update with the covariance they had without the limit.
+  CHECK(g_front_end.stats().track_failures.too_uncertain - before == above);
+  CHECK(on.count == off.count - above);
+  CHECK(report_on.matched == report_off.matched - above);
+  CHECK(report_on.failed_matches == report_off.failed_matches + above);
+  std::size_t kept_as_before = 0;
+  for (std::size_t k = 0; k < on.count; ++k) {
+    CHECK(on.sigma_px[k] <= limit_px * (1.0 + 1e-12));
+    for (std::size_t j = 0; j < off.count; ++j) {
+      if (off.index[j] == on.index[k] && off.sigma_px[j] == on.sigma_px[k]) ++kept_as_before;
+    }
+  }
+  CHECK(kept_as_before == on.count);
+}
+
+TEST_CASE("configure refuses a match sigma limit that is negative, not finite or not a small angle") {
+  FrontEndConfig bad;
+  for (double value : {-1e-4, 0.01, 1.0}) {
+    bad.max_match_sigma_rad = value;
+    CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  }
+  bad.max_match_sigma_rad = std::numeric_limits<double>::infinity();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  CHECK_FALSE(g_front_end.configured());
+  FrontEndConfig on;
+  on.max_match_sigma_rad = 4.3e-4;
+  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
+  CHECK(FrontEndConfig{}.max_match_sigma_rad == 0.0);
 }
 
 namespace {

@@ -136,8 +136,10 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   const long long predicted = json_count(summary, "tracks_predicted");
   const long long matched = json_count(summary, "tracks_matched");
   CHECK(json_count(summary, "tracks_inverse_warped") == 0);  // off by default
+  CHECK(json_count(summary, "too_uncertain") == 0);          // max_match_sigma_rad off by default
   long long failed = 0;
-  for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on"}) {
+  for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on",
+                             "too_uncertain"}) {
     INFO(reason);
     const long long n = json_count(summary, reason);
     CHECK(n >= 0);
@@ -155,5 +157,24 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(beyond >= 0);
   CHECK(seeded + beyond <= tried);
   CHECK(beyond < tried / 20);
+  fs::remove_all(out);
+}
+
+TEST_CASE("vantage-sim: --max-match-sigma-rad below the match floor refuses every found match as too uncertain") {
+  const fs::path out = fresh_dir("too_uncertain");
+  // 1e-4 rad is below the default floor (1.7e-4 rad), which every match's standard deviation includes.
+  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--max-match-sigma-rad",
+               "1e-4", "--out", out.string()}) == 2);
+  const std::string summary = read(out / "summary.json");
+  const long long predicted = json_count(summary, "tracks_predicted");
+  const long long uncertain = json_count(summary, "too_uncertain");
+  CHECK(json_count(summary, "tracks_matched") == 0);
+  CHECK(uncertain > predicted / 2);
+  long long failed = 0;
+  for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on",
+                             "too_uncertain"}) {
+    failed += json_count(summary, reason);
+  }
+  CHECK(failed == predicted);
   fs::remove_all(out);
 }
