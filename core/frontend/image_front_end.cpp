@@ -564,10 +564,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
     }
+    // Not used, and not held against the primitive either: its normal, not its point, is in doubt (a
+    // rejection would erase an unconfirmed new primitive and count toward track loss).
     if (match_too_uncertain(ekf.R_px2, template_noise ? &common : nullptr)) {
       ++report.failed_matches;
       ++stats_.track_failures.too_uncertain;
-      reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
     }
     ++report.matched;

@@ -98,8 +98,8 @@ struct FrontEndConfig {
   double match_sigma_floor_rad = 1.7e-4;
   // A tracked match whose modelled covariance (R with the warp covariance, plus the reference patch's
   // common error) has a mean standard deviation sqrt(trace / 2) above this angle times the focal length
-  // is not used: counted as TrackFailureCounts::too_uncertain and rejected as a failed match (so an
-  // unconfirmed new primitive is erased). 0: off. In [0, 0.01). Such matches are mostly those of poorly
+  // is not used: counted as TrackFailureCounts::too_uncertain, the primitive left as it was (not flagged,
+  // no rejection counted: an unconfirmed new primitive is not erased for it). 0: off. In [0, 0.01). Such matches are mostly those of poorly
   // known normals, and their errors are not Gaussian: in the consistency test the ones with sd >= 0.25 px
   // read mean NEES / 2 of 14-16 against 1-2 for the rest. At 4.3e-4 (0.25 px at the paper's 640x480
   // camera) the bunny's mean NEES, all primitives, 7.61 -> 4.09 (320x240, the gross failure gone), and in

@@ -894,14 +894,17 @@ TEST_CASE("an observation the observer refuses updates nothing and is counted as
 
 namespace {
 
-// Records the mean standard deviation (px) of every observation shown (fixed capacity, no allocation).
+// Records every observation shown: its mean standard deviation (px), primitive and prior point (fixed
+// capacity, no allocation).
 struct MatchSigmaObserver final : TrackObserver {
   std::array<double, 4096> sigma_px{};
   std::array<PrimitiveIndex, 4096> index{};
+  std::array<Eigen::Vector3d, 4096> prior_X{};
   std::size_t count = 0;
   void on_observation(const TrackedObservation& o) override {
     if (count == sigma_px.size()) return;
     sigma_px[count] = std::sqrt(0.5 * o.match_covariance_px2().trace());
+    prior_X[count] = o.prior.X_world;
     index[count++] = o.index;
   }
 };
@@ -915,7 +918,7 @@ UpdateReport update_third_view_limited(double max_match_sigma_rad, MatchSigmaObs
 
 }  // namespace
 
-TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is not used and is counted too uncertain") {
+TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is not used, its primitive left as it was") {
   MatchSigmaObserver off;
   const std::uint64_t uncertain_before = g_front_end.stats().track_failures.too_uncertain;
   const UpdateReport report_off = update_third_view_limited(0.0, off);
@@ -949,6 +952,17 @@ TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is n
     }
   }
   CHECK(kept_as_before == on.count);
+  // The refused primitives (unconfirmed: their first re-observation) are neither updated nor erased.
+  std::size_t refused_untouched = 0;
+  for (std::size_t j = 0; j < off.count; ++j) {
+    if (!(off.sigma_px[j] > limit_px)) continue;
+    const PrimitiveIndex i = off.index[j];
+    if (g_pool.is_alive(i) && g_pool[i].X_world == off.prior_X[j] && g_pool[i].observation_count == 0 &&
+        (g_pool[i].flags & primitive_flags::kLostTrack) == 0) {
+      ++refused_untouched;
+    }
+  }
+  CHECK(refused_untouched == above);
 }
 
 TEST_CASE("configure refuses a match sigma limit that is negative, not finite or not a small angle") {
