@@ -102,9 +102,12 @@ struct FrontEndConfig {
   // no rejection counted: an unconfirmed new primitive is not erased for it). 0: off. In [0, 0.01). Such matches are mostly those of poorly
   // known normals, and their errors are not Gaussian: in the consistency test the ones with sd >= 0.25 px
   // read mean NEES / 2 of 14-16 against 1-2 for the rest. At 4.3e-4 (0.25 px at the paper's 640x480
-  // camera) the bunny's mean NEES, all primitives, 7.61 -> 4.09 (320x240, the gross failure gone), and in
-  // the missions the share of precise primitives within 3 sigmas of the surface rises by 7-8 points at
-  // 270 and 600 images, but coverage at 270 images falls (EXPERIMENTS.md, "Session 27").
+  // camera) the bunny's mean NEES, all primitives, 7.61 -> 3.88 (320x240, the gross failure gone) and the
+  // tracked primitives' RMS surface error falls on every scene; over 22 missions the share of precise
+  // primitives within 3 sigmas of the surface rises 6.9 / 8.1 points at 600 / 270 images (22 of 22), with
+  // coverage -1.1 / -2.3 (standard errors 0.8 / 1.7). Off by default: the facing 640x480 plane's NEES,
+  // in its band through an along-ray over-confidence, falls below it (2.956 -> 2.691) (EXPERIMENTS.md,
+  // "Session 27").
   double max_match_sigma_rad = 0.0;
   // The fit covariance with the spatial correlation of the fit's residuals (core/frontend/
   // match_covariance.hpp) instead of the white-residual one. Needs adaptive_R. Off: on the consistency
