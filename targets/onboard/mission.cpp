@@ -150,6 +150,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.inverse_warp_ncc_min = static_cast<float>(m.inverse_warp_ncc_min);
   fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
   fc.epipolar_guard_fraction = m.epipolar_guard_fraction;
+  fc.max_match_sigma_rad = m.max_match_sigma_rad;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

@@ -50,6 +50,7 @@ mission:
   inverse_warp_ncc_min: 0.95
   spawn_normal_fit_along_rays: false
   epipolar_guard_fraction: 1.5
+  max_match_sigma_rad: 4.3e-4
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -72,12 +73,14 @@ mission:
   CHECK(c.mission.inverse_warp_ncc_min == 0.95);
   CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
   CHECK(c.mission.epipolar_guard_fraction == 1.5);
+  CHECK(c.mission.max_match_sigma_rad == 4.3e-4);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
   CHECK(defaults.mission.inverse_warp_ncc_min == FrontEndConfig{}.inverse_warp_ncc_min);
   CHECK(defaults.mission.spawn_normal_fit_along_rays);
   CHECK(defaults.mission.epipolar_guard_fraction == FrontEndConfig{}.epipolar_guard_fraction);
+  CHECK(defaults.mission.max_match_sigma_rad == FrontEndConfig{}.max_match_sigma_rad);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -107,6 +110,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.spawn_normal_fit_along_rays: must be true or false");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: -0.5\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: -0.5 is outside [0, 4]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  max_match_sigma_rad: 0.01\n") ==
+        "onboard.yaml: mission.max_match_sigma_rad: 0.01 is outside [0, 0.009]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==
