@@ -1071,7 +1071,7 @@ TEST_CASE("a limit on the matches' modelled sd makes the bunny's primitives more
     INFO("bunny, all without gross: NEES " << bunny_default.all.mean_nees_without_gross << " -> "
                                            << bunny.all.mean_nees_without_gross << "; tracked RMS surface error "
                                            << bunny_default.tracked.rms_error << " -> " << bunny.tracked.rms_error);
-    REQUIRE(bunny.tracked.primitives > 200u);
+    REQUIRE(bunny.tracked.primitives > 150u);  // measured 224 (320x240) and 1,054
     CHECK(bunny.all.mean_nees_without_gross < 0.85 * bunny_default.all.mean_nees_without_gross);
     CHECK(bunny.all.gross <= bunny_default.all.gross);
     CHECK(bunny.tracked.rms_error < 0.9 * bunny_default.tracked.rms_error);
