@@ -230,6 +230,8 @@ Status ImageFrontEnd::configure(const PinholeIntrinsics& intrinsics, const Front
   intrinsics_ = intrinsics;
   config_ = config;
   match_floor_px2_ = config.match_floor_px2(intrinsics);
+  const double max_match_sigma_px = config.max_match_sigma_rad * focal_mean(intrinsics);
+  max_match_variance_px2_ = max_match_sigma_px * max_match_sigma_px;
   stats_ = FrontEndStats{};
   next_view_index_ = 0;
   cells_x_ = intrinsics.width_px / config.seed_stride_px;
@@ -566,7 +568,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     // Not used, and not held against the primitive either: its normal, not its point, is in doubt (a
     // rejection would erase an unconfirmed new primitive and count toward track loss).
-    if (match_too_uncertain(ekf.R_px2, template_noise ? &common : nullptr)) {
+    if (match_too_uncertain(ekf.R_px2, common)) {
       ++report.failed_matches;
       ++stats_.track_failures.too_uncertain;
       continue;
@@ -820,13 +822,11 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
 
-bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError* common) const {
-  if (!(config_.max_match_sigma_rad > 0.0)) return false;
-  double variance_sum = R_px2.trace();
-  if (common != nullptr) variance_sum += (common->B * common->covariance_px2 * common->B.transpose()).trace();
-  const double limit_px = config_.max_match_sigma_rad * focal_mean(intrinsics_);
+bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common) const {
+  if (!(max_match_variance_px2_ > 0.0)) return false;
+  const double variance_sum = R_px2.trace() + common.projected_px2().trace();
   // A NaN covariance is refused too: nothing can weigh it.
-  return !(0.5 * variance_sum <= limit_px * limit_px);
+  return !(0.5 * variance_sum <= max_match_variance_px2_);
 }
 
 void ImageFrontEnd::count_track_failure(bool template_usable, MatchOutcome outcome) {

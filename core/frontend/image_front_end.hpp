@@ -488,9 +488,9 @@ class ImageFrontEnd final : public MeasurementSource {
   // inside the reference patch to search (template_usable false), or the search's outcome.
   void count_track_failure(bool template_usable, MatchOutcome outcome);
   // Whether a found match is too uncertain to use (FrontEndConfig::max_match_sigma_rad): its modelled
-  // covariance, R_px2 plus the reference patch's common error through B when common is given, has a mean
-  // standard deviation above the limit (or is not a number).
-  bool match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError* common) const;
+  // covariance, R_px2 plus the reference patch's common error through B (zero when no patch noise was
+  // recorded), has a mean standard deviation above the limit (or is not a number).
+  bool match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common) const;
   // The inverse-warp match of a primitive whose warped template is masked (inverse_warp_masked): true with
   // *observed and *covariance_px2 set, and its normal replaced when the fit knows it better.
   // A maps this image's offsets into the creating image's (the template's warp at the prior normal).
@@ -548,6 +548,8 @@ class ImageFrontEnd final : public MeasurementSource {
   FrontEndConfig config_;
   // config_.match_floor_px2(intrinsics_), formed once at configure(): it enters every match's R.
   Eigen::Matrix2d match_floor_px2_ = Eigen::Matrix2d::Zero();
+  // (config_.max_match_sigma_rad times the mean focal length)^2, formed once at configure(); 0: no limit.
+  double max_match_variance_px2_ = 0.0;
   FrontEndStats stats_;
   bool configured_ = false;
   bool initialized_ = false;

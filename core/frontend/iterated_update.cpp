@@ -146,7 +146,7 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   const Eigen::Vector3d X0 = primitive.X_world;
   const Eigen::Matrix3d& Sigma = primitive.Sigma_world;
   const Eigen::Matrix<double, 3, 2> CB = common->cross_covariance * common->B.transpose();  // C B^T
-  const Eigen::Matrix2d R_total = common->B * common->covariance_px2 * common->B.transpose() + config.R_px2;
+  const Eigen::Matrix2d R_total = common->projected_px2() + config.R_px2;
   // Gauss-Newton on the MAP cost: linearize at X (one projection per pass, so the frame stays small under
   // ASan), gate on the first pass (at the prior). It stops when a step is negligible against the prior's
   // spread (Mahalanobis length below kStepSigmas: H and K at the point it started from are then those at

@@ -29,6 +29,9 @@ struct CommonObservationError {
   Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Zero();
   Eigen::Matrix<double, 3, 2> cross_covariance = Eigen::Matrix<double, 3, 2>::Zero();
   Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
+
+  // The common error's covariance in this image: B P_c B^T (px^2).
+  Eigen::Matrix2d projected_px2() const { return B * covariance_px2 * B.transpose(); }
 };
 
 // Same contract as ekf_update (core/estimation/ekf.hpp): the Mahalanobis gate on the innovation at the

@@ -932,8 +932,8 @@ TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is n
   std::size_t above = 0;
   for (std::size_t k = 0; k < off.count; ++k) above += off.sigma_px[k] > limit_px ? 1u : 0u;
   REQUIRE(above > off.count / 4);
-  const PinholeIntrinsics k = Scene{}.k;
-  const double focal = 0.5 * (k.fx_px + k.fy_px);
+  const PinholeIntrinsics intrinsics = Scene{}.k;
+  const double focal = 0.5 * (intrinsics.fx_px + intrinsics.fy_px);
 
   MatchSigmaObserver on;
   const std::uint64_t before = g_front_end.stats().track_failures.too_uncertain;
