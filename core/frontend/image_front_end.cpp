@@ -1029,6 +1029,11 @@ NormalSource ImageFrontEnd::normal_source(PrimitiveIndex i) const {
   return i < kFrontEndMaxPrimitives ? normal_source_[i] : NormalSource::kFacingPrior;
 }
 
+Eigen::Matrix2d ImageFrontEnd::template_noise_covariance_px2(PrimitiveIndex i) const {
+  if (i >= kFrontEndMaxPrimitives) return Eigen::Matrix2d::Zero();
+  return template_noise_[i].covariance_px2.cast<double>();
+}
+
 std::size_t ImageFrontEnd::neighbour_positions(std::int32_t cx, std::int32_t cy, const PrimitivePoolView& pool,
                                                double max_sigma,
                                                std::array<Eigen::Vector3d, kFrontEndMaxNormalFitNeighbours>* out,

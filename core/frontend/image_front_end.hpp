@@ -414,6 +414,9 @@ class ImageFrontEnd final : public MeasurementSource {
   double normal_tilt_variance(PrimitiveIndex i) const;
   // Where primitive i's normal came from (kFacingPrior beyond kFrontEndMaxPrimitives).
   NormalSource normal_source(PrimitiveIndex i) const;
+  // The modelled covariance (px^2, in its creating image) of the shift primitive i's reference patch noise
+  // gives all its matches (FrontEndConfig::model_template_noise: P_c); zero when not modelled.
+  Eigen::Matrix2d template_noise_covariance_px2(PrimitiveIndex i) const;
   // Gives alive primitive i a normal known from elsewhere (a prior model, a range sensor, a simulator's
   // ground truth) with its tilt variance (rad^2 per axis): the warp of its template and the normal's share
   // of R use it from the next update on, and a plane refit or photometric estimate replaces it only when it

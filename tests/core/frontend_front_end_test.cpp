@@ -1281,6 +1281,36 @@ TEST_CASE("normal_source tells where each normal came from: the spawn's plane fi
   CHECK(g_front_end.normal_source(static_cast<PrimitiveIndex>(kFrontEndMaxPrimitives)) == NormalSource::kFacingPrior);
 }
 
+// P_c, the shift a primitive's reference patch noise gives all its matches (model_template_noise): half the
+// covariance of its spawn match's fit, so a positive definite sub-pixel matrix for every new primitive;
+// zero when not modelled, after forget_primitive_tables(), and beyond the front end's tables.
+TEST_CASE("template_noise_covariance_px2 reports each new primitive's modelled patch noise, zero when not modelled") {
+  Scene scene;
+  initialize_on_plane(scene, first_view(), second_view());
+  std::size_t alive = 0;
+  PrimitiveIndex first = kInvalidPrimitive;
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (!g_pool.is_alive(i)) continue;
+    ++alive;
+    if (first == kInvalidPrimitive) first = i;
+    const Eigen::Matrix2d P_c = g_front_end.template_noise_covariance_px2(i);
+    CHECK(P_c(0, 1) == Approx(P_c(1, 0)));
+    CHECK(P_c(0, 0) > 0.0);
+    CHECK(P_c.determinant() > 0.0);
+    CHECK(P_c.trace() < 1.0);  // a spawn match's fit is good to a fraction of a pixel
+  }
+  REQUIRE(alive > 200u);
+  g_front_end.forget_primitive_tables();
+  CHECK(g_front_end.template_noise_covariance_px2(first).isZero());
+  CHECK(g_front_end.template_noise_covariance_px2(static_cast<PrimitiveIndex>(kFrontEndMaxPrimitives)).isZero());
+  FrontEndConfig unmodelled = plane_config();
+  unmodelled.model_template_noise = false;
+  initialize_on_plane(scene, first_view(), second_view(), unmodelled);
+  for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+    if (g_pool.is_alive(i)) CHECK(g_front_end.template_noise_covariance_px2(i).isZero());
+  }
+}
+
 TEST_CASE("a plane fit replaces a normal that claims more, and with refit_supersedes_spawn_fit a refit always replaces the spawn's") {
   // The rule without the switch: the smaller tilt variance wins, whatever the sources.
   CHECK(normal_refit_replaces(NormalSource::kSpawnFit, 0.01, NormalSource::kRefit, 0.005, false));
