@@ -772,16 +772,23 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // match beyond the chi2(2) 99 % quantile against the truth refused, or with the normal oracle: every
 // primitive given its true normal before each update (diagnostics, not configurations).
 // kMatchSigmaLimit: the default with FrontEndConfig::max_match_sigma_rad at kMatchSigmaLimitRad.
-// kFeatureTruth: the default, also evaluated against the point each primitive's patch shows.
-enum class Matcher { kDefault, kInverseWarp, kTailOracle, kNormalOracle, kMatchSigmaLimit, kFeatureTruth };
-constexpr int kMatchers = 6;
-constexpr double kMatchSigmaLimitRad = 4.3e-4;  // 0.25 px at 640x480, 0.125 px at 320x240
+// kFeatureTruth: the default, also evaluated against the point each primitive's patch shows;
+// kFeatureTruthLimited: the same with max_match_sigma_rad at kCandidateMatchSigmaLimitRad, the default the
+// missions would take (level coverage, more precise primitives within 3 sigmas; EXPERIMENTS.md, "Session 27").
+enum class Matcher { kDefault, kInverseWarp, kTailOracle, kNormalOracle, kMatchSigmaLimit, kFeatureTruth, kFeatureTruthLimited };
+constexpr int kMatchers = 7;
+constexpr double kMatchSigmaLimitRad = 4.3e-4;         // 0.25 px at 640x480, 0.125 px at 320x240
+constexpr double kCandidateMatchSigmaLimitRad = 6e-4;  // 0.35 px at 640x480
+bool feature_truth(Matcher matcher) {
+  return matcher == Matcher::kFeatureTruth || matcher == Matcher::kFeatureTruthLimited;
+}
 
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
   FrontEndConfig config;
   config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
   if (matcher == Matcher::kMatchSigmaLimit) config.max_match_sigma_rad = kMatchSigmaLimitRad;
+  if (matcher == Matcher::kFeatureTruthLimited) config.max_match_sigma_rad = kCandidateMatchSigmaLimitRad;
   double matched = 0.0;
   double predicted = 0.0;
   const bool tail_oracle = matcher == Matcher::kTailOracle;
@@ -796,7 +803,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   // Confirmation by parallax (core/frontend/EXPERIMENTS.md): "all" counts provisional primitives too.
   const Figures confirmed = evaluate_front_end(scene, config, 0, matched, predicted, 0);
   const Figures provisional = evaluate_front_end(scene, config, 0, matched, predicted, 1);
-  if (matcher == Matcher::kFeatureTruth) {  // before the oracle refills the pool
+  if (feature_truth(matcher)) {  // before the oracle refills the pool
     const NoiseFreeViews noise_free = render_noise_free(scene);
     out.feature_all = evaluate_front_end(scene, config, 0, matched, predicted, -1, nullptr, &noise_free, &out.shifts);
     out.feature_tracked = evaluate_front_end(scene, config, 3, matched, predicted, -1, nullptr, &noise_free);
@@ -816,7 +823,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   print(scene.name, "oracle (95% gate, EKF), matched in every view that sees it", oracle_split.matched_every_view);
   print(scene.name, "oracle (95% gate, EKF), missed a view that sees it", oracle_split.missed_a_view);
   print(scene.name, "oracle (no gate, iterated EKF), all primitives", out.oracle_iterated);
-  if (matcher == Matcher::kFeatureTruth) {
+  if (feature_truth(matcher)) {
     print(scene.name, "front end, all primitives, against the point its patch shows", out.feature_all);
     print(scene.name, "front end, >= 3 updates, against the point its patch shows", out.feature_tracked);
     const PatchShifts& c = out.shifts;
@@ -865,6 +872,7 @@ std::string scene_name(const char* scene, Matcher matcher) {
   return std::string(scene) + (matcher == Matcher::kTailOracle     ? " (tail oracle)"
                                : matcher == Matcher::kNormalOracle ? " (normal oracle)"
                                : matcher == Matcher::kMatchSigmaLimit ? " (match sigma limit)"
+                               : matcher == Matcher::kFeatureTruthLimited ? " (match sigma limit 6e-4)"
                                                                       : "");
 }
 
@@ -1210,5 +1218,31 @@ TEST_CASE("the point a primitive's patch shows is found, shifted from the seed a
       CHECK(shifts.half_nees_against_fit > 0.5);
       CHECK(shifts.half_nees_against_fit < 2.0);
     }
+  }
+}
+
+bool in_band(const Figures& f) { return f.mean_nees >= f.band_low && f.mean_nees <= f.band_high; }
+
+// Session 27's limit (FrontEndConfig::max_match_sigma_rad, off by default) takes the facing 640x480 plane
+// out of its band against the seed ray's point; against the point each patch shows it does not
+// (core/frontend/EXPERIMENTS.md, "Session 28"). Measured, default -> 6e-4: plane 320x240 all 3.002 -> 3.021
+// (in band), tracked 2.421 -> 2.371; plane 640x480 all 3.896 -> 3.940, tracked 3.306 -> 3.039 (enters its
+// band); bunny tracked 6.409 -> 5.630 and 6.870 -> 6.037. The owner's decision between the two truths and on
+// the limit as a default rests on these rows.
+TEST_CASE("against the point a patch shows, a match limit of 6e-4 keeps the planes' rows in band and lowers the bunny's",
+          "[.][feature-truth]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    const SceneRun& plane = plane_run(resolution, Matcher::kFeatureTruth);
+    const SceneRun& plane_limited = plane_run(resolution, Matcher::kFeatureTruthLimited);
+    const SceneRun& bunny = bunny_run(resolution, Matcher::kFeatureTruth);
+    const SceneRun& bunny_limited = bunny_run(resolution, Matcher::kFeatureTruthLimited);
+    INFO("plane all " << plane.feature_all.mean_nees << " -> " << plane_limited.feature_all.mean_nees << ", tracked "
+                      << plane.feature_tracked.mean_nees << " -> " << plane_limited.feature_tracked.mean_nees
+                      << "; bunny tracked " << bunny.feature_tracked.mean_nees << " -> "
+                      << bunny_limited.feature_tracked.mean_nees);
+    if (in_band(plane.feature_all)) CHECK(in_band(plane_limited.feature_all));
+    if (in_band(plane.feature_tracked)) CHECK(in_band(plane_limited.feature_tracked));
+    if (resolution == Resolution::kVga) CHECK(in_band(plane_limited.feature_tracked));
+    CHECK(bunny_limited.feature_tracked.mean_nees < bunny.feature_tracked.mean_nees);
   }
 }
