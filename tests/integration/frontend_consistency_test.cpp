@@ -229,6 +229,14 @@ struct Scene {
   std::function<bool(const Eigen::Vector2d& seed_px, const Viewpoint& view, Eigen::Vector3d* n)> true_normal;
 };
 
+// The ray-cast camera of a scene: its intrinsics and shading.
+sim::RaycastCameraConfig camera_config_of(const Scene& scene) {
+  sim::RaycastCameraConfig camera_config;
+  camera_config.intrinsics = scene.config->intrinsics;
+  camera_config.shading = scene.config->shading;
+  return camera_config;
+}
+
 // The shift of the point a primitive's patch shows from its seed pixel, in the creating image (px), over
 // all primitives: its RMS per axis, and its mean e^T C^-1 e / 2 (1 when C is its covariance) against the
 // front end's P_c and against the noise-free fit's own covariance (the patch's noise over its gradients).
@@ -422,10 +430,7 @@ class MatchTruthObserver final : public TrackObserver {
 // normal_oracle: before each update every primitive adopts its seed patch's true plane normal (sim::NormalOracle).
 void run_front_end(const Scene& scene, const FrontEndConfig& config, double refuse_above_half_nees, bool normal_oracle,
                    double* matched, double* predicted, SceneRun* run) {
-  sim::RaycastCameraConfig camera_config;
-  camera_config.intrinsics = scene.config->intrinsics;
-  camera_config.shading = scene.config->shading;
-  sim::RaycastCamera camera(scene.world->scene(), camera_config, nullptr);
+  sim::RaycastCamera camera(scene.world->scene(), camera_config_of(scene), nullptr);
   const PinholeIntrinsics& k = camera.intrinsics();
   g_pool.clear();
   REQUIRE(ok(g_front_end.configure(k, config)));
@@ -517,30 +522,26 @@ int missed_views(const Scene& scene, const Primitive& p, const Eigen::Vector3d& 
 
 // Noise-free renders of a scene's views, in its order, to find the point each primitive's patch shows.
 struct NoiseFreeViews {
-  std::vector<Viewpoint> views;
   std::vector<std::vector<std::uint8_t>> pixels;
   int width_px = 0;
   int height_px = 0;
 
-  // The render of the view at pose's position; null when none is.
-  const std::uint8_t* find(const Viewpoint& pose) const {
-    for (std::size_t v = 0; v < views.size(); ++v) {
-      if ((views[v].position_world - pose.position_world).norm() < 1e-9) return pixels[v].data();
+  // The render of the scene's view at pose's position; null when none is.
+  const std::uint8_t* find(const Scene& scene, const Viewpoint& pose) const {
+    for (std::size_t v = 0; v < pixels.size(); ++v) {
+      if ((scene.views[v].position_world - pose.position_world).norm() < 1e-9) return pixels[v].data();
     }
     return nullptr;
   }
 };
 
 NoiseFreeViews render_noise_free(const Scene& scene) {
-  sim::RaycastCameraConfig camera_config;
-  camera_config.intrinsics = scene.config->intrinsics;
-  camera_config.shading = scene.config->shading;
+  sim::RaycastCameraConfig camera_config = camera_config_of(scene);
   camera_config.shading.pixel_noise_sigma = 0.0;
   sim::RaycastCamera camera(scene.world->scene(), camera_config, nullptr);
   NoiseFreeViews out;
   out.width_px = camera.intrinsics().width_px;
   out.height_px = camera.intrinsics().height_px;
-  out.views = scene.views;
   for (std::size_t v = 0; v < scene.views.size(); ++v) {
     out.pixels.emplace_back(static_cast<std::size_t>(out.width_px) * out.height_px);
     MutableGrayImageView view{out.pixels.back().data(), out.width_px, out.height_px, out.width_px};
@@ -605,7 +606,7 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
     const Eigen::Vector3d seed_ray = back_project_ray_world(seed, creating, k);
     if (!scene.true_point(seed, creating, &truth)) continue;
     if (noise_free != nullptr) {
-      const std::uint8_t* pixels = noise_free->find(creating);
+      const std::uint8_t* pixels = noise_free->find(scene, creating);
       REQUIRE(pixels != nullptr);
       const GrayImageView image{pixels, noise_free->width_px, noise_free->height_px, noise_free->width_px};
       sim::FeatureTruth feature;
@@ -681,10 +682,7 @@ Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, Tra
 // (match_sigma_floor_rad times the focal lengths, squared), and the fraction above the chi2(2) 99%
 // quantile. 1 and 0.01 when consistent.
 void print_match_consistency(const Scene& scene, const FrontEndConfig& config, std::size_t j) {
-  sim::RaycastCameraConfig camera_config;
-  camera_config.intrinsics = scene.config->intrinsics;
-  camera_config.shading = scene.config->shading;
-  sim::RaycastCamera camera(scene.world->scene(), camera_config, nullptr);
+  sim::RaycastCamera camera(scene.world->scene(), camera_config_of(scene), nullptr);
   const PinholeIntrinsics& k = camera.intrinsics();
   std::vector<std::uint8_t> a(static_cast<std::size_t>(k.width_px) * k.height_px);
   std::vector<std::uint8_t> b(a.size());
