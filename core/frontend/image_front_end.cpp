@@ -434,7 +434,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const Eigen::Matrix<double, 2, 3>& H = ahead.H[slot];
     if (!ahead.in_view[slot]) {
       // Not even seen in the first image after its creation: nothing confirms it (confirm_spawns).
-      if (p.observation_count == 0 && p.creating_view < next_view_index_) drop_unconfirmed(i, kNoCell, pool);
+      if (p.observation_count == 0 && p.creating_view < next_view_index_) {
+        flush_updates(view, pool, report);  // erasures in the unbatched order: the pool reuses freed slots by it
+        drop_unconfirmed(i, kNoCell, pool);
+      }
       continue;
     }
     ++report.predicted_in_view;
@@ -444,6 +447,11 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const double depth = (R_cam_world * (p.X_world - view.position_world)).z();
     const double radius_px = p.radius * focal / depth;
     const std::size_t centre_cell = cell_of(predicted);
+    for (int held = 0; held < pending_count_; ++held) {
+      if (pending_updates_[held].centre_cell != centre_cell) continue;
+      flush_updates(view, pool, report);  // its bookkeeping may free or mark this cell: first, as unbatched
+      break;
+    }
     if (cell_primitive_[centre_cell] == kInvalidPrimitive || depth < cell_depth_[centre_cell]) {
       cell_primitive_[centre_cell] = i;
       cell_depth_[centre_cell] = static_cast<float>(depth);
@@ -487,6 +495,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       if (!ok(ahead.creating_status[slot]) || !ok(ahead.plane_status[slot])) {
         ++report.failed_matches;  // seen edge-on: nothing to correlate
         ++stats_.track_failures.edge_on;
+        flush_updates(view, pool, report);  // a rejection may erase (see above)
         reject_observation(i, centre_cell, pool, report);
         continue;
       }
@@ -535,6 +544,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (outcome != MatchOutcome::kMatched) {
       ++report.failed_matches;
       count_track_failure(template_usable, outcome);
+      flush_updates(view, pool, report);  // a rejection may erase (see above)
       reject_observation(i, centre_cell, pool, report, beyond_search);
       continue;
     }
@@ -575,26 +585,82 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     ++report.matched;
     ++stats_.tracks_matched;
-    // A provisional primitive's prior, to tell whether this update constrained its depth.
-    const bool provisional = (p.flags & primitive_flags::kProvisional) != 0;
-    const Eigen::Matrix3d Sigma_prior = provisional ? p.Sigma_world : Eigen::Matrix3d::Zero();
-    const Status updated =
-        observer_ != nullptr
-            ? observed_update(i, p, &common, predicted, H, observed, ekf, warp_covariance, B, view, creating,
-                              inverse_warped)
-            : iterated_consider_update(p, &common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
-                                       ProjectionAtPrior{predicted, H}, &stats_.ekf);
-    if (ok(updated) && template_noise) template_noise_[i].cross_covariance = common.cross_covariance.cast<float>();
-    if (ok(updated)) {
-      ++report.updated;
-      if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
-      p.flags &= static_cast<std::uint16_t>(~(primitive_flags::kLostTrack | primitive_flags::kUnconsumed));
-      if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
-      if (provisional) judge_provisional(i, Sigma_prior, have_creating ? &creating : nullptr, centre_cell, pool, report);
-    } else if (updated == Status::kGatedOutlier) {
-      ++report.gated_outliers;
-      reject_observation(i, centre_cell, pool, report, beyond_search);
+    hold_update(i, centre_cell, template_noise, have_creating, beyond_search, inverse_warped, creating, common, observed,
+                ekf, predicted, H, warp_covariance, B, view, pool, report);
+  }
+  flush_updates(view, pool, report);
+}
+
+void ImageFrontEnd::hold_update(PrimitiveIndex i, std::size_t centre_cell, bool template_noise, bool have_creating,
+                                bool beyond_search, bool inverse_warped, const Viewpoint& creating,
+                                const CommonObservationError& common, const Eigen::Vector2d& observed,
+                                const EkfConfig& ekf, const Eigen::Vector2d& predicted,
+                                const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix2d& warp_covariance,
+                                const Eigen::Matrix2d& B, const Viewpoint& view, PrimitivePoolView& pool,
+                                UpdateReport& report) {
+  Primitive& p = pool[i];
+  // The update, held for a batch of kUpdateBatchSize (one at a time when an observer watches).
+  PendingUpdate& pending = pending_updates_[pending_count_];
+  pending.index = i;
+  pending.centre_cell = centre_cell;
+  pending.template_noise = template_noise;
+  // A provisional primitive's prior, to tell whether this update constrained its depth.
+  pending.provisional = (p.flags & primitive_flags::kProvisional) != 0;
+  if (pending.provisional) {
+    pending.Sigma_prior = p.Sigma_world;
+  } else {
+    pending.Sigma_prior.setZero();
+  }
+  pending.have_creating = have_creating;
+  pending.beyond_search = beyond_search;
+  pending.creating = creating;
+  pending.common = common;
+  if (observer_ != nullptr) {
+    const Status updated = observed_update(i, p, &pending.common, predicted, H, observed, ekf, warp_covariance, B, view,
+                                           creating, inverse_warped);
+    after_update(pending, updated, pool, report);
+    return;
+  }
+  ConsiderUpdateRequest& request = update_requests_[pending_count_];
+  request.primitive = &p;
+  request.common = &pending.common;
+  request.observation_px = observed;
+  request.config = ekf;
+  request.at_prior.predicted_px = predicted;
+  request.at_prior.H = H;
+  if (++pending_count_ == kUpdateBatchSize) flush_updates(view, pool, report);
+}
+
+void ImageFrontEnd::flush_updates(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report) {
+  if (pending_count_ == 0) return;
+  std::array<Status, kUpdateBatchSize> updated;
+  iterated_consider_update_batch(update_requests_.data(), pending_count_, view, intrinsics_, config_.ekf_iterations,
+                                 &stats_.ekf, updated.data());
+  const int count = pending_count_;
+  pending_count_ = 0;
+  for (int held = 0; held < count; ++held) after_update(pending_updates_[held], updated[held], pool, report);
+}
+
+void ImageFrontEnd::after_update(const PendingUpdate& pending, Status updated, PrimitivePoolView& pool,
+                                 UpdateReport& report) {
+  const PrimitiveIndex i = pending.index;
+  const std::size_t centre_cell = pending.centre_cell;
+  Primitive& p = pool[i];
+  if (ok(updated) && pending.template_noise) {
+    template_noise_[i].cross_covariance = pending.common.cross_covariance.cast<float>();
+  }
+  if (ok(updated)) {
+    ++report.updated;
+    if (i < kFrontEndMaxPrimitives) rejected_in_a_row_[i] = 0;
+    p.flags &= static_cast<std::uint16_t>(~(primitive_flags::kLostTrack | primitive_flags::kUnconsumed));
+    if (cell_primitive_[centre_cell] == i) cell_state_[centre_cell] |= kCellUpdated;
+    if (pending.provisional) {
+      judge_provisional(i, pending.Sigma_prior, pending.have_creating ? &pending.creating : nullptr, centre_cell, pool,
+                        report);
     }
+  } else if (updated == Status::kGatedOutlier) {
+    ++report.gated_outliers;
+    reject_observation(i, centre_cell, pool, report, pending.beyond_search);
   }
 }
 

@@ -17,6 +17,7 @@
 #include "core/criterion/depth_buffer.hpp"
 #include "core/criterion/saliency.hpp"
 #include "core/estimation/ekf.hpp"
+#include "core/frontend/iterated_update.hpp"
 #include "core/frontend/measurement_source.hpp"
 #include "core/frontend/ncc.hpp"
 #include "core/frontend/patch_search.hpp"
@@ -476,6 +477,35 @@ class ImageFrontEnd final : public MeasurementSource {
                                            const Viewpoint& view, const Viewpoint& creating, bool inverse_warped);
   void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
                                 Eigen::Matrix2d* fit_covariance) const;
+  // A tracked match's update, held until kUpdateBatchSize are ready (iterated_consider_update_batch), with
+  // what the bookkeeping after it needs. Every later primitive with the same centre cell flushes the
+  // batch first, so the cells see the same order of claims and erasures as one update at a time.
+  struct PendingUpdate {
+    PrimitiveIndex index = kInvalidPrimitive;
+    std::size_t centre_cell = 0;
+    bool template_noise = false;
+    bool provisional = false;
+    bool have_creating = false;
+    bool beyond_search = false;
+    Eigen::Matrix3d Sigma_prior = Eigen::Matrix3d::Zero();
+    Viewpoint creating;
+    CommonObservationError common;
+  };
+  // Holds primitive i's matched observation for the next batch (updates it at once when an observer
+  // watches). Not inlined, nor are the two below: track()'s frame stays under the core's 16 KB limit
+  // under ASan.
+  [[gnu::noinline]] void hold_update(PrimitiveIndex i, std::size_t centre_cell, bool template_noise, bool have_creating,
+                                     bool beyond_search, bool inverse_warped, const Viewpoint& creating,
+                                     const CommonObservationError& common, const Eigen::Vector2d& observed,
+                                     const EkfConfig& ekf, const Eigen::Vector2d& predicted,
+                                     const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix2d& warp_covariance,
+                                     const Eigen::Matrix2d& B, const Viewpoint& view, PrimitivePoolView& pool,
+                                     UpdateReport& report);
+  // Runs the held updates and their bookkeeping in the order they were matched.
+  [[gnu::noinline]] void flush_updates(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
+  // The bookkeeping after primitive `pending.index`'s update returned `updated`.
+  [[gnu::noinline]] void after_update(const PendingUpdate& pending, Status updated, PrimitivePoolView& pool,
+                                      UpdateReport& report);
   // Erases new primitive i whose first re-observation failed or did not happen (FrontEndConfig::
   // confirm_spawns); centre_cell (kNoCell: none) forgets it.
   static constexpr std::size_t kNoCell = ~static_cast<std::size_t>(0);
@@ -588,6 +618,9 @@ class ImageFrontEnd final : public MeasurementSource {
   std::array<TemplateNoise, kFrontEndMaxPrimitives> template_noise_;
 
   DepthBuffer<> depth_buffer_;
+  std::array<PendingUpdate, kUpdateBatchSize> pending_updates_;
+  std::array<ConsiderUpdateRequest, kUpdateBatchSize> update_requests_;
+  int pending_count_ = 0;
   std::array<float, window_scratch_size(kFrontEndMaxHalfWindow)> window_scratch_{};
   std::array<float, kFrontEndMaxEpipolarSamples> epipolar_ncc_{};
   std::array<std::int32_t, 2 * kFrontEndMaxEpipolarSamples> epipolar_xy_{};

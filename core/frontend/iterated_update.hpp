@@ -61,4 +61,23 @@ Status iterated_consider_update(Primitive& primitive, CommonObservationError* co
                                 const Viewpoint& view, const PinholeIntrinsics& intrinsics, const EkfConfig& config,
                                 int max_iterations, const ProjectionAtPrior& at_prior, EkfStats* stats);
 
+// One update of a batch: the arguments of iterated_consider_update with at_prior, per primitive.
+struct ConsiderUpdateRequest {
+  Primitive* primitive = nullptr;
+  CommonObservationError* common = nullptr;
+  Eigen::Vector2d observation_px = Eigen::Vector2d::Zero();
+  EkfConfig config;
+  ProjectionAtPrior at_prior;
+};
+inline constexpr int kUpdateBatchSize = 4;
+
+// iterated_consider_update(request, view, ..., at_prior) for each of up to kUpdateBatchSize requests (distinct
+// primitives) seen from one view: the same statuses, primitives, cross-covariances and stats, bit for bit.
+// Where the CPU has AVX2 (x86-64) the four updates run in the lanes of double vectors, each lane doing the
+// scalar update's operations in Eigen's order without FMA (core test); a lane whose short-form covariance
+// fails its check is done again by the scalar update (the Joseph form). Elsewhere one by one.
+void iterated_consider_update_batch(const ConsiderUpdateRequest* requests, int count, const Viewpoint& view,
+                                    const PinholeIntrinsics& intrinsics, int max_iterations, EkfStats* stats,
+                                    Status* statuses);
+
 }  // namespace vantage
