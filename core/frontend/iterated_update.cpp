@@ -43,10 +43,18 @@ double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
   return (m.array() - m.array()).sum();
 }
 
-
-}  // namespace
-
-namespace update_checks {
+// Every input finite: one summed probe (noinline, like the helpers below, to keep consider_update's frame
+// small under ASan).
+[[gnu::noinline]] bool inputs_finite(const Primitive& primitive, const CommonObservationError& common,
+                                     const Eigen::Vector2d& observation_px, const Viewpoint& view,
+                                     const EkfConfig& config, const ProjectionAtPrior* at_prior) {
+  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
+                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
+                 nonfinite_probe(common.covariance_px2) + nonfinite_probe(common.cross_covariance) +
+                 nonfinite_probe(common.B);
+  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
+  return probe == 0.0;
+}
 
 // Sylvester's criterion for a matrix symmetric by construction (0.5 (M + M^T)): finite, and the leading
 // minors (the LLT's pivots' products) positive, for a fraction of an LLT's cost.
@@ -69,25 +77,27 @@ bool spd3(const Eigen::Matrix3d& M) {
   return spd3_symmetrized(M);
 }
 
-// One summed probe (noinline, like the helpers below, to keep consider_update's frame small under ASan).
-[[gnu::noinline]] bool inputs_finite(const Primitive& primitive, const CommonObservationError& common,
-                                     const Eigen::Vector2d& observation_px, const Viewpoint& view,
-                                     const EkfConfig& config, const ProjectionAtPrior* at_prior) {
-  double probe = nonfinite_probe(observation_px) + nonfinite_probe(view.position_world) +
-                 nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
-                 nonfinite_probe(common.covariance_px2) + nonfinite_probe(common.cross_covariance) +
-                 nonfinite_probe(common.B);
-  if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
-  return probe == 0.0;
+}  // namespace
+
+namespace update_checks {
+
+Status check_inputs(const Primitive& primitive, const CommonObservationError& common,
+                    const Eigen::Vector2d& observation_px, const Viewpoint& view, const EkfConfig& config,
+                    const ProjectionAtPrior* at_prior) {
+  if (!inputs_finite(primitive, common, observation_px, view, config, at_prior)) return Status::kNonFiniteInput;
+  return spd3(primitive.Sigma_world) ? Status::kOk : Status::kNotSpd;
+}
+
+bool short_form_trusted(const Eigen::Matrix3d& Sigma_new, const Eigen::Matrix3d& Sigma_prior) {
+  constexpr double kKeptFraction = 1e-6;
+  return Sigma_new(0, 0) >= kKeptFraction * Sigma_prior(0, 0) && Sigma_new(1, 1) >= kKeptFraction * Sigma_prior(1, 1) &&
+         Sigma_new(2, 2) >= kKeptFraction * Sigma_prior(2, 2) && spd3_symmetrized(Sigma_new);
 }
 
 }  // namespace update_checks
 
 namespace {
 
-using update_checks::inputs_finite;
-using update_checks::spd3;
-using update_checks::spd3_symmetrized;
 
 // v^T Sigma^-1 v for a symmetric positive definite 3x3 (spd3 holds): the adjugate's quadratic form over
 // the determinant, without forming the inverse.
@@ -124,7 +134,6 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
   return kept + K * (common.B * common.covariance_px2);
 }
 
-
 // The posterior covariance for K, the last linearization point's own gain (G = K S): Sigma - K G^T, or
 // the Joseph form where that short form is not to be trusted (see consider_update). False when neither is
 // positive definite.
@@ -132,13 +141,9 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
                                           const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix3d& Sigma,
                                           const Eigen::Matrix<double, 3, 2>& CB, const Eigen::Matrix2d& R_total,
                                           Eigen::Matrix3d* Sigma_new) {
-  constexpr double kKeptFraction = update_checks::kKeptFraction;  // rounding of the short form below ~1e-10 relative
   const Eigen::Matrix3d shortened = Sigma - K * G.transpose();
   *Sigma_new = 0.5 * (shortened + shortened.transpose());
-  if ((*Sigma_new)(0, 0) >= kKeptFraction * Sigma(0, 0) && (*Sigma_new)(1, 1) >= kKeptFraction * Sigma(1, 1) &&
-      (*Sigma_new)(2, 2) >= kKeptFraction * Sigma(2, 2) && spd3_symmetrized(*Sigma_new)) {
-    return true;
-  }
+  if (update_checks::short_form_trusted(*Sigma_new, Sigma)) return true;
   const Eigen::Matrix3d joseph = joseph_covariance(K, H, Sigma, CB, R_total);
   *Sigma_new = 0.5 * (joseph + joseph.transpose());
   return spd3_symmetrized(*Sigma_new);
@@ -149,13 +154,10 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
                        int max_iterations, const ProjectionAtPrior* at_prior, EkfStats* stats) {
   EkfStats ignored;
   EkfStats& counts = stats != nullptr ? *stats : ignored;
-  if (!inputs_finite(primitive, *common, observation_px, view, config, at_prior)) {
+  const Status inputs = update_checks::check_inputs(primitive, *common, observation_px, view, config, at_prior);
+  if (!ok(inputs)) {
     ++counts.rejected_inputs;
-    return Status::kNonFiniteInput;
-  }
-  if (!spd3(primitive.Sigma_world)) {
-    ++counts.rejected_inputs;
-    return Status::kNotSpd;
+    return inputs;
   }
   const Eigen::Vector3d X0 = primitive.X_world;
   const Eigen::Matrix3d& Sigma = primitive.Sigma_world;

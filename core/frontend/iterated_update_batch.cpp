@@ -241,10 +241,7 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
       for (int j = 0; j < 3; ++j) Sigma_new(i, j) = Sn[i][j][l];
       for (int j = 0; j < 2; ++j) cross_new(i, j) = cross[i][j][l];
     }
-    const Eigen::Matrix3d& Sigma = q.primitive->Sigma_world;
-    constexpr double kept_fraction = update_checks::kKeptFraction;
-    if (!(Sigma_new(0, 0) >= kept_fraction * Sigma(0, 0) && Sigma_new(1, 1) >= kept_fraction * Sigma(1, 1) &&
-          Sigma_new(2, 2) >= kept_fraction * Sigma(2, 2) && update_checks::spd3_symmetrized(Sigma_new))) {
+    if (!update_checks::short_form_trusted(Sigma_new, q.primitive->Sigma_world)) {
       // The short form cancelled: the scalar update, which takes the Joseph form, from the same inputs.
       statuses[l] = iterated_consider_update(*q.primitive, q.common, q.observation_px, view, intrinsics, q.config,
                                              max_iterations, q.at_prior, stats);
@@ -284,11 +281,8 @@ void iterated_consider_update_batch(const ConsiderUpdateRequest* requests, int c
     bool any = false;
     for (int l = 0; l < count; ++l) {
       const ConsiderUpdateRequest& q = requests[l];
-      if (!update_checks::inputs_finite(*q.primitive, *q.common, q.observation_px, view, q.config, &q.at_prior)) {
-        statuses[l] = Status::kNonFiniteInput;
-        ++counts->rejected_inputs;
-      } else if (!update_checks::spd3(q.primitive->Sigma_world)) {
-        statuses[l] = Status::kNotSpd;
+      statuses[l] = update_checks::check_inputs(*q.primitive, *q.common, q.observation_px, view, q.config, &q.at_prior);
+      if (!ok(statuses[l])) {
         ++counts->rejected_inputs;
       } else {
         active[l] = true;

@@ -3,6 +3,7 @@
 // (iterated_update_batch.cpp) so that both refuse exactly the same inputs.
 #include <Eigen/Core>
 
+#include "core/common/status.hpp"
 #include "core/estimation/ekf.hpp"
 #include "core/frontend/iterated_update.hpp"
 #include "core/geometry/viewpoint.hpp"
@@ -10,18 +11,15 @@
 
 namespace vantage::update_checks {
 
-// Every input finite (at_prior may be null).
-bool inputs_finite(const Primitive& primitive, const CommonObservationError& common, const Eigen::Vector2d& observation_px,
-                   const Viewpoint& view, const EkfConfig& config, const ProjectionAtPrior* at_prior);
+// The update's inputs: kOk, kNonFiniteInput when any is not finite, kNotSpd when the prior Sigma is not
+// symmetric positive definite (at_prior may be null).
+Status check_inputs(const Primitive& primitive, const CommonObservationError& common,
+                    const Eigen::Vector2d& observation_px, const Viewpoint& view, const EkfConfig& config,
+                    const ProjectionAtPrior* at_prior);
 
-// Symmetric within 1e-9 of its diagonal's scale, finite and positive definite.
-bool spd3(const Eigen::Matrix3d& M);
-
-// Finite and positive definite, for a matrix symmetric by construction (0.5 (M + M^T)).
-bool spd3_symmetrized(const Eigen::Matrix3d& M);
-
-// The short form's rounding is negligible against the result only while every axis keeps at least this
-// fraction of its prior variance (iterated_update.cpp, updated_covariance).
-inline constexpr double kKeptFraction = 1e-6;
+// Whether the short form Sigma - K G^T (symmetrized: Sigma_new) can be trusted: every axis keeps at least
+// 1e-6 of its prior variance (below that the subtraction's rounding, ~1e-10 relative, is not small against
+// the result) and it is positive definite. Otherwise the Joseph form.
+bool short_form_trusted(const Eigen::Matrix3d& Sigma_new, const Eigen::Matrix3d& Sigma_prior);
 
 }  // namespace vantage::update_checks
