@@ -503,11 +503,16 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       A = ahead.A[slot];
       dA = ahead.dA[slot];
     }
-    Eigen::Matrix2d B;
-    reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &B);
+    // The match and its measurement model, filled in as they are made.
+    MatchedObservation matched;
+    matched.centre_cell = centre_cell;
+    matched.have_creating = have_creating;
+    matched.predicted_px = predicted;
+    matched.H = H;
+    reference_template(p.patch, A, config_.warp_min_deviation, &tmpl, &matched.B);
 
     MatchOutcome outcome = MatchOutcome::kNoRoom;
-    Eigen::Vector2d observed = predicted;
+    matched.observed_px = predicted;
     Eigen::Matrix2d fit_covariance = Eigen::Matrix2d::Zero();
     bool beyond_search = false;
     // Fewer than half the template's pixels inside the reference patch: the window is not searched.
@@ -532,11 +537,13 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       const double half_trace = 0.5 * prior.trace();
       const double largest = half_trace + std::sqrt(std::max(0.0, half_trace * half_trace - prior.determinant()));
       query.direct_fit = 9.0 * largest <= config_.direct_fit_max_px * config_.direct_fit_max_px;
-      outcome = search_window(image, tmpl, query, match, scratch, &observed, &best, &fit_covariance);
+      outcome = search_window(image, tmpl, query, match, scratch, &matched.observed_px, &best, &fit_covariance);
     }
     // A template the warp masked: the image warped instead (inverse_warp_masked).
-    const bool inverse_warped = !template_usable && config_.inverse_warp_masked && have_creating &&
-                                match_by_inverse_warp(i, image, creating, view, predicted, A, pool, &observed, &fit_covariance);
+    matched.inverse_warped = !template_usable && config_.inverse_warp_masked && have_creating &&
+                             match_by_inverse_warp(i, image, creating, view, predicted, A, pool, &matched.observed_px,
+                                                   &fit_covariance);
+    const bool inverse_warped = matched.inverse_warped;
     if (inverse_warped) {
       outcome = MatchOutcome::kMatched;
       ++stats_.tracks_inverse_warped;
@@ -549,7 +556,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       continue;
     }
     // What the normal's uncertainty does to the match through the warp (FrontEndConfig); only a match uses it.
-    Eigen::Matrix2d warp_covariance = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d& warp_covariance = matched.warp_covariance_px2;
     // (An inverse-warp match's covariance holds the normal's share already.)
     if (config_.model_normal_uncertainty && have_creating && !inverse_warped) {
       warp_covariance = warp_shift_covariance(tmpl, A, dA, normal_tilt_variance(i));
@@ -559,19 +566,20 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     if (config_.photometric_normal && have_creating && !inverse_warped &&
         normal_tilt_variance(i) > config_.photometric_normal_min_tilt_variance &&
         warp_covariance.trace() > measurement_R(fit_covariance).trace()) {
-      (void)refine_normal_photometric(i, image, creating, view, H_creating, H, pool, &tmpl, &B, &warp_covariance,
-                                      &observed, &fit_covariance);
+      (void)refine_normal_photometric(i, image, creating, view, H_creating, H, pool, &tmpl, &matched.B,
+                                      &warp_covariance, &matched.observed_px, &fit_covariance);
     }
-    if (!inverse_warped) correlate_fit_covariance(image, tmpl, observed, &fit_covariance);
-    EkfConfig ekf = config_.ekf;
-    CommonObservationError common;
+    if (!inverse_warped) correlate_fit_covariance(image, tmpl, matched.observed_px, &fit_covariance);
+    EkfConfig& ekf = matched.ekf;
+    ekf = config_.ekf;
+    CommonObservationError& common = matched.common;
     // Only a primitive whose patch noise was recorded at its creation splits the fit covariance.
     const bool template_noise = config_.model_template_noise && config_.adaptive_R && i < kFrontEndMaxPrimitives &&
                                 fit_covariance.allFinite() && template_noise_[i].covariance_px2.trace() > 0.0f;
     if (template_noise) {
       common.covariance_px2 = template_noise_[i].covariance_px2.cast<double>();
       common.cross_covariance = template_noise_[i].cross_covariance.cast<double>();
-      common.B = B;
+      common.B = matched.B;
       ekf.R_px2 = measurement_R(0.5 * fit_covariance) + warp_covariance;
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
@@ -585,25 +593,21 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     ++report.matched;
     ++stats_.tracks_matched;
-    hold_update(i, centre_cell, template_noise, have_creating, beyond_search, inverse_warped, creating, common, observed,
-                ekf, predicted, H, warp_covariance, B, view, pool, report);
+    matched.template_noise = template_noise;
+    matched.beyond_search = beyond_search;
+    hold_update(i, matched, creating, view, pool, report);
   }
   flush_updates(view, pool, report);
 }
 
-void ImageFrontEnd::hold_update(PrimitiveIndex i, std::size_t centre_cell, bool template_noise, bool have_creating,
-                                bool beyond_search, bool inverse_warped, const Viewpoint& creating,
-                                const CommonObservationError& common, const Eigen::Vector2d& observed,
-                                const EkfConfig& ekf, const Eigen::Vector2d& predicted,
-                                const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix2d& warp_covariance,
-                                const Eigen::Matrix2d& B, const Viewpoint& view, PrimitivePoolView& pool,
-                                UpdateReport& report) {
+void ImageFrontEnd::hold_update(PrimitiveIndex i, const MatchedObservation& matched, const Viewpoint& creating,
+                                const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report) {
   Primitive& p = pool[i];
   // The update, held for a batch of kUpdateBatchSize (one at a time when an observer watches).
   PendingUpdate& pending = pending_updates_[pending_count_];
   pending.index = i;
-  pending.centre_cell = centre_cell;
-  pending.template_noise = template_noise;
+  pending.centre_cell = matched.centre_cell;
+  pending.template_noise = matched.template_noise;
   // A provisional primitive's prior, to tell whether this update constrained its depth.
   pending.provisional = (p.flags & primitive_flags::kProvisional) != 0;
   if (pending.provisional) {
@@ -611,23 +615,22 @@ void ImageFrontEnd::hold_update(PrimitiveIndex i, std::size_t centre_cell, bool 
   } else {
     pending.Sigma_prior.setZero();
   }
-  pending.have_creating = have_creating;
-  pending.beyond_search = beyond_search;
+  pending.have_creating = matched.have_creating;
+  pending.beyond_search = matched.beyond_search;
   pending.creating = creating;
-  pending.common = common;
+  pending.common = matched.common;
   if (observer_ != nullptr) {
-    const Status updated = observed_update(i, p, &pending.common, predicted, H, observed, ekf, warp_covariance, B, view,
-                                           creating, inverse_warped);
+    const Status updated = observed_update(i, p, matched, &pending.common, view, creating);
     after_update(pending, updated, pool, report);
     return;
   }
   ConsiderUpdateRequest& request = update_requests_[pending_count_];
   request.primitive = &p;
   request.common = &pending.common;
-  request.observation_px = observed;
-  request.config = ekf;
-  request.at_prior.predicted_px = predicted;
-  request.at_prior.H = H;
+  request.observation_px = matched.observed_px;
+  request.config = matched.ekf;
+  request.at_prior.predicted_px = matched.predicted_px;
+  request.at_prior.H = matched.H;
   if (++pending_count_ == kUpdateBatchSize) flush_updates(view, pool, report);
 }
 
@@ -664,32 +667,31 @@ void ImageFrontEnd::after_update(const PendingUpdate& pending, Status updated, P
   }
 }
 
-Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
-                                      const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
-                                      const Eigen::Vector2d& observed, const EkfConfig& ekf,
-                                      const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
-                                      const Viewpoint& view, const Viewpoint& creating, bool inverse_warped) {
+Status ImageFrontEnd::observed_update(PrimitiveIndex i, Primitive& p, const MatchedObservation& matched,
+                                      CommonObservationError* common, const Viewpoint& view,
+                                      const Viewpoint& creating) {
   TrackedObservation seen;
   seen.index = i;
   seen.prior = p;
-  seen.predicted_px = predicted;
-  seen.observed_px = observed;
-  seen.R_px2 = ekf.R_px2;
-  seen.warp_covariance_px2 = warp_covariance;
+  seen.predicted_px = matched.predicted_px;
+  seen.observed_px = matched.observed_px;
+  seen.R_px2 = matched.ekf.R_px2;
+  seen.warp_covariance_px2 = matched.warp_covariance_px2;
   seen.common_covariance_px2 = common->covariance_px2;
   seen.common_cross_covariance = common->cross_covariance;
-  seen.B = B;
+  seen.B = matched.B;
   seen.view = view;
   seen.creating_view = creating;
-  seen.inverse_warped = inverse_warped;
+  seen.inverse_warped = matched.inverse_warped;
   if (observer_->refuse(seen)) {
     seen.refused = true;
     seen.outcome = Status::kGatedOutlier;
     observer_->on_observation(seen);
     return seen.outcome;
   }
-  seen.outcome = iterated_consider_update(p, common, observed, view, intrinsics_, ekf, config_.ekf_iterations,
-                                          ProjectionAtPrior{predicted, H}, &stats_.ekf);
+  seen.outcome = iterated_consider_update(p, common, matched.observed_px, view, intrinsics_, matched.ekf,
+                                          config_.ekf_iterations, ProjectionAtPrior{matched.predicted_px, matched.H},
+                                          &stats_.ekf);
   observer_->on_observation(seen);
   return seen.outcome;
 }

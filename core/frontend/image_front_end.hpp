@@ -470,11 +470,25 @@ class ImageFrontEnd final : public MeasurementSource {
   // (FrontEndConfig::correlated_fit_covariance) when that can be computed.
   // The EKF update of a tracked primitive with the observer told (observer_ set): the TrackedObservation
   // is built only here, not per primitive when nobody observes.
-  [[gnu::noinline]] Status observed_update(PrimitiveIndex i, Primitive& p, CommonObservationError* common,
-                                           const Eigen::Vector2d& predicted, const Eigen::Matrix<double, 2, 3>& H,
-                                           const Eigen::Vector2d& observed, const EkfConfig& ekf,
-                                           const Eigen::Matrix2d& warp_covariance, const Eigen::Matrix2d& B,
-                                           const Viewpoint& view, const Viewpoint& creating, bool inverse_warped);
+  // A tracked match on its way to the EKF update: where it was predicted and found, its measurement model
+  // (R in ekf, the warp covariance, B, the common error) and what the bookkeeping after the update needs.
+  struct MatchedObservation {
+    std::size_t centre_cell = 0;
+    bool template_noise = false;
+    bool have_creating = false;
+    bool beyond_search = false;
+    bool inverse_warped = false;
+    Eigen::Vector2d predicted_px = Eigen::Vector2d::Zero();
+    Eigen::Matrix<double, 2, 3> H = Eigen::Matrix<double, 2, 3>::Zero();
+    Eigen::Vector2d observed_px = Eigen::Vector2d::Zero();
+    EkfConfig ekf;
+    Eigen::Matrix2d warp_covariance_px2 = Eigen::Matrix2d::Zero();
+    Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
+    CommonObservationError common;
+  };
+  [[gnu::noinline]] Status observed_update(PrimitiveIndex i, Primitive& p, const MatchedObservation& matched,
+                                           CommonObservationError* common, const Viewpoint& view,
+                                           const Viewpoint& creating);
   void correlate_fit_covariance(const GrayImageView& image, const NccTemplate& tmpl, const Eigen::Vector2d& uv_px,
                                 Eigen::Matrix2d* fit_covariance) const;
   // A tracked match's update, held until kUpdateBatchSize are ready (iterated_consider_update_batch), with
@@ -494,13 +508,8 @@ class ImageFrontEnd final : public MeasurementSource {
   // Holds primitive i's matched observation for the next batch (updates it at once when an observer
   // watches). Not inlined, nor are the two below: track()'s frame stays under the core's 16 KB limit
   // under ASan.
-  [[gnu::noinline]] void hold_update(PrimitiveIndex i, std::size_t centre_cell, bool template_noise, bool have_creating,
-                                     bool beyond_search, bool inverse_warped, const Viewpoint& creating,
-                                     const CommonObservationError& common, const Eigen::Vector2d& observed,
-                                     const EkfConfig& ekf, const Eigen::Vector2d& predicted,
-                                     const Eigen::Matrix<double, 2, 3>& H, const Eigen::Matrix2d& warp_covariance,
-                                     const Eigen::Matrix2d& B, const Viewpoint& view, PrimitivePoolView& pool,
-                                     UpdateReport& report);
+  [[gnu::noinline]] void hold_update(PrimitiveIndex i, const MatchedObservation& matched, const Viewpoint& creating,
+                                     const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // Runs the held updates and their bookkeeping in the order they were matched.
   [[gnu::noinline]] void flush_updates(const Viewpoint& view, PrimitivePoolView& pool, UpdateReport& report);
   // The bookkeeping after primitive `pending.index`'s update returned `updated`.
