@@ -400,7 +400,8 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
                           UpdateReport& report) {
   const double focal = focal_mean(intrinsics_);
   const double stride = config_.seed_stride_px;
-  const MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
+  MatchConfig match{config_.ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
+  match.require_converged_fit = config_.require_converged_fit;
   const Span<float> scratch(window_scratch_.data(), window_scratch_.size());
   const Eigen::Matrix3d R_cam_world = view.R_world_cam.transpose();
   tracking_view_ = view;

@@ -295,9 +295,11 @@ MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, 
   }
   Eigen::Vector2d uv = refine(bx, by, best, value(bx - 1, by), value(bx + 1, by), value(bx, by - 1), value(bx, by + 1));
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double last_step = 0.0;
   if (config.subpixel_iterations > 0 &&
-      !refine_with(image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px, kernels, &uv,
-                   &covariance)) {
+      (!refine_with(image, tmpl, bx, by, config.subpixel_iterations, config.subpixel_stop_step_px, kernels, &uv,
+                    &covariance, nullptr, &last_step) ||
+       (config.require_converged_fit && !(last_step < config.subpixel_stop_step_px)))) {
     return MatchOutcome::kNoSubpixel;
   }
   *uv_px = uv;

@@ -32,6 +32,9 @@ struct MatchConfig {
   int subpixel_iterations = 3;
   // The fit stops after a step shorter than this (pixels).
   double subpixel_stop_step_px = 1e-2;
+  // search_window refuses (kNoSubpixel) a fit whose last step was not shorter than subpixel_stop_step_px
+  // (the direct path always requires it). Off: such a fit is taken as it stands after its last step.
+  bool require_converged_fit = false;
   // Build of the inner loops (match_kernel.hpp); one this CPU lacks falls back to the baseline.
   MatchKernel kernel = MatchKernel::kAuto;
 };

@@ -151,6 +151,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
   fc.epipolar_guard_fraction = m.epipolar_guard_fraction;
   fc.max_match_sigma_rad = m.max_match_sigma_rad;
+  fc.subpixel_iterations = m.subpixel_iterations;
+  fc.require_converged_fit = m.require_converged_fit;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

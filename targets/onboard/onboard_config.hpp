@@ -59,6 +59,10 @@ struct MissionSettings {
   // FrontEndConfig::max_match_sigma_rad: a tracked match whose modelled sd exceeds this angle times the
   // focal length is not used (0: off; more trustworthy sigmas, less coverage early in a mission).
   double max_match_sigma_rad = FrontEndConfig{}.max_match_sigma_rad;
+  // FrontEndConfig::subpixel_iterations and require_converged_fit: a tracked match whose subpixel fit did not
+  // converge within that many steps is not used (off: it is taken as it stands).
+  int subpixel_iterations = FrontEndConfig{}.subpixel_iterations;
+  bool require_converged_fit = FrontEndConfig{}.require_converged_fit;
 };
 
 struct OnboardConfig {

@@ -136,6 +136,12 @@ int run_cli(int argc, const char* const* argv) {
                  "image front end: match a primitive whose prior 3-sigma ellipse is within this many pixels by the "
                  "subpixel fit from its prediction, searching only if that fails (default 1; 0: always search)")
       ->check(CLI::Range(0.0, 12.0));
+  app.add_option("--subpixel-iterations", options.subpixel_iterations,
+                 "image front end: Gauss-Newton steps of the subpixel fit (default 3; 0: the NCC parabola only)")
+      ->check(CLI::Range(0, 20));
+  app.add_flag("--require-converged-fit", options.require_converged_fit,
+               "image front end: a tracked match whose subpixel fit did not converge is not used (with "
+               "--subpixel-iterations 6: more precise verified coverage, planes' NEES below band; default off)");
   app.add_option("--confirm-depth-information", options.confirm_depth_information,
                  "image front end: a new primitive stays provisional until an update divides its seed-ray variance "
                  "by 1 + this (default 1; 0: off)")

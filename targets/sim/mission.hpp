@@ -58,6 +58,9 @@ struct MissionOptions {
   double max_match_sigma_rad = FrontEndConfig{}.max_match_sigma_rad;
   // Image front end: FrontEndConfig::direct_fit_max_px (0: always search the window).
   double direct_fit_max_px = FrontEndConfig{}.direct_fit_max_px;
+  // Image front end: FrontEndConfig::subpixel_iterations and require_converged_fit.
+  int subpixel_iterations = FrontEndConfig{}.subpixel_iterations;
+  bool require_converged_fit = FrontEndConfig{}.require_converged_fit;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and
   // provisional_max_updates (0: keep them flagged). core/frontend/EXPERIMENTS.md, "Confirmation by parallax".
   double confirm_depth_information = FrontEndConfig{}.confirm_min_depth_information;

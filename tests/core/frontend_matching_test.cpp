@@ -108,6 +108,23 @@ TEST_CASE("the parabola fit recovers the vertex of a sampled parabola") {
   CHECK(parabola_peak_offset(0.9, 0.5, 0.1) == 0.0);  // not a maximum at the centre
 }
 
+namespace {
+
+// The reference image's patch at (x, y) as a template, and a window query that predicts it there with a
+// prior of 1.5 px and a box of +-half_window px.
+void template_and_query_at(const GrayImageView& reference, std::int32_t x, std::int32_t y, std::int32_t half_window,
+                           NccTemplate* tmpl, WindowQuery* query) {
+  std::array<std::uint8_t, kPatchPixels> patch{};
+  extract_patch(reference, x, y, &patch);
+  make_template(patch, tmpl);
+  query->predicted_px = Eigen::Vector2d(x, y);
+  query->S_inv = Eigen::Matrix2d::Identity() / (1.5 * 1.5);
+  query->half_width_px = half_window;
+  query->half_height_px = half_window;
+}
+
+}  // namespace
+
 TEST_CASE("a window search finds a subpixel shift of a textured image") {
   const std::int32_t w = 64;
   const std::int32_t h = 48;
@@ -120,15 +137,9 @@ TEST_CASE("a window search finds a subpixel shift of a textured image") {
     const GrayImageView moved_view{moved.data(), w, h, w};
     for (std::int32_t y = 12; y < 36; y += 6) {
       for (std::int32_t x = 12; x < 52; x += 6) {
-        std::array<std::uint8_t, kPatchPixels> patch{};
-        extract_patch(ref_view, x, y, &patch);
         NccTemplate tmpl;
-        make_template(patch, &tmpl);
         WindowQuery query;
-        query.predicted_px = Eigen::Vector2d(x, y);
-        query.S_inv = Eigen::Matrix2d::Identity() / (1.5 * 1.5);
-        query.half_width_px = 5;
-        query.half_height_px = 5;
+        template_and_query_at(ref_view, x, y, 5, &tmpl, &query);
         Eigen::Vector2d found;
         float best = 0.0f;
         MatchOutcome outcome = MatchOutcome::kNoRoom;
@@ -141,6 +152,66 @@ TEST_CASE("a window search finds a subpixel shift of a textured image") {
   }
   // The parabola alone locks toward integers (0.37 px worst here); the photometric refinement does not.
   CHECK(worst < 0.1);
+}
+
+TEST_CASE("a window search that requires a converged fit refuses only the fits that did not converge") {
+  const std::int32_t w = 64;
+  const std::int32_t h = 48;
+  const auto reference = noise_image(w, h, 0.0, 0.0);
+  const GrayImageView ref_view{reference.data(), w, h, w};
+  const auto moved = noise_image(w, h, 0.3, -0.2);
+  const GrayImageView moved_view{moved.data(), w, h, w};
+  std::array<float, window_scratch_size(8)> scratch{};
+  const Span<float> scratch_span(scratch.data(), scratch.size());
+  MatchConfig converged_only;
+  converged_only.require_converged_fit = true;
+  // One Gauss-Newton step from the parabola's vertex: converged only where that step was below 0.01 px.
+  MatchConfig one_step_converged_only = converged_only;
+  one_step_converged_only.subpixel_iterations = 1;
+  int searched = 0;
+  int kept = 0;
+  int refused = 0;
+  int kept_after_one_step = 0;
+  for (std::int32_t y = 12; y < 36; y += 3) {
+    for (std::int32_t x = 12; x < 52; x += 3) {
+      NccTemplate tmpl;
+      WindowQuery query;
+      template_and_query_at(ref_view, x, y, 4, &tmpl, &query);
+      Eigen::Vector2d taken;
+      Eigen::Vector2d converged;
+      Eigen::Matrix2d taken_covariance;
+      Eigen::Matrix2d converged_covariance;
+      float best = 0.0f;
+      if (search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span, &taken, &best, &taken_covariance) !=
+          MatchOutcome::kMatched) {
+        continue;
+      }
+      ++searched;
+      MatchOutcome strict = MatchOutcome::kNoRoom;
+      REQUIRE_NO_ALLOCATION(strict = search_window(moved_view, tmpl, query, converged_only, scratch_span, &converged,
+                                                   &best, &converged_covariance));
+      if (strict == MatchOutcome::kMatched) {
+        ++kept;
+        // What it keeps is the same match, bit for bit.
+        CHECK(converged == taken);
+        CHECK(converged_covariance == taken_covariance);
+      } else {
+        ++refused;
+        CHECK(strict == MatchOutcome::kNoSubpixel);
+      }
+      if (search_window(moved_view, tmpl, query, one_step_converged_only, scratch_span, &converged, &best) ==
+          MatchOutcome::kMatched) {
+        ++kept_after_one_step;
+      }
+    }
+  }
+  INFO("searched " << searched << ": kept " << kept << ", refused " << refused << "; kept after one step "
+                   << kept_after_one_step);
+  REQUIRE(searched > 50);
+  // Three steps settle most fits of a shifted image, not all; a single step from the parabola almost none.
+  CHECK(kept > searched / 2);
+  CHECK(refused > 0);
+  CHECK(kept_after_one_step < kept / 4);
 }
 
 namespace {

@@ -51,6 +51,8 @@ mission:
   spawn_normal_fit_along_rays: false
   epipolar_guard_fraction: 1.5
   max_match_sigma_rad: 4.3e-4
+  subpixel_iterations: 6
+  require_converged_fit: true
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -74,6 +76,8 @@ mission:
   CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
   CHECK(c.mission.epipolar_guard_fraction == 1.5);
   CHECK(c.mission.max_match_sigma_rad == 4.3e-4);
+  CHECK(c.mission.subpixel_iterations == 6);
+  CHECK(c.mission.require_converged_fit);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
@@ -81,6 +85,8 @@ mission:
   CHECK(defaults.mission.spawn_normal_fit_along_rays);
   CHECK(defaults.mission.epipolar_guard_fraction == FrontEndConfig{}.epipolar_guard_fraction);
   CHECK(defaults.mission.max_match_sigma_rad == FrontEndConfig{}.max_match_sigma_rad);
+  CHECK(defaults.mission.subpixel_iterations == FrontEndConfig{}.subpixel_iterations);
+  CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -112,6 +118,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.epipolar_guard_fraction: -0.5 is outside [0, 4]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  max_match_sigma_rad: 0.01\n") ==
         "onboard.yaml: mission.max_match_sigma_rad: 0.01 is outside [0, 0.009]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  subpixel_iterations: 21\n") ==
+        "onboard.yaml: mission.subpixel_iterations: 21 is outside [0, 20]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==
