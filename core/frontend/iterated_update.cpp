@@ -98,7 +98,6 @@ bool short_form_trusted(const Eigen::Matrix3d& Sigma_new, const Eigen::Matrix3d&
 
 namespace {
 
-
 // v^T Sigma^-1 v for a symmetric positive definite 3x3 (spd3 holds): the adjugate's quadratic form over
 // the determinant, without forming the inverse.
 double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& v) {
