@@ -815,9 +815,16 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
   if (tmpl.valid_count < kPatchPixels / 2) return false;
   Eigen::Vector2d uv = *observed;
   Eigen::Matrix2d covariance;
+  double last_step_px = 0.0;
   if (!refine_subpixel(image, tmpl, static_cast<std::int32_t>(std::lround(observed->x())),
                        static_cast<std::int32_t>(std::lround(observed->y())), config_.subpixel_iterations, &uv,
-                       &covariance)) {
+                       &covariance, MatchKernel::kAuto, &last_step_px)) {
+    return false;
+  }
+  // Under require_converged_fit the refit must converge by the window search's rule too; if it does not, the
+  // estimate is not used and the window search's match stands, as when the refit fails.
+  if (config_.require_converged_fit && !(last_step_px < MatchConfig{}.subpixel_stop_step_px)) {
+    ++stats_.photometric_refits_unconverged;
     return false;
   }
   const Eigen::Matrix2d warp = config_.model_normal_uncertainty
@@ -825,6 +832,7 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
                                   : Eigen::Matrix2d::Zero();
   p.normal_world = estimate.normal_world;
   set_normal_tilt_variance(i, estimate.tilt_variance, NormalSource::kPhotometric);
+  ++stats_.photometric_normals;
   *tmpl_out = tmpl;
   *B = B_new;
   *warp_covariance = warp;

@@ -72,8 +72,9 @@ struct FrontEndConfig {
   int subpixel_iterations = 3;
   // A tracked match whose subpixel fit did not converge (its last step not below 0.01 px) is not used:
   // MatchConfig::require_converged_fit, counted as a no_subpixel failure. It checks the window search's fit
-  // (the direct fit from the prediction always had to converge); the refit with the template of a new
-  // photometric normal (refine_normal_photometric) is not checked. Off by default. With
+  // (the direct fit from the prediction always had to converge) and the refit with the template of a new
+  // photometric normal (refine_normal_photometric): a refit that does not settle drops that estimate, and the
+  // window search's match stands (FrontEndStats::photometric_refits_unconverged). Off by default. With
   // subpixel_iterations = 6, every scene's tracked RMS error falls, as does the bunny's NEES, and the missions
   // gain precise verified coverage (level coverage at 600 images, -4.6 points at 270). The planes' NEES falls
   // below its bands (EXPERIMENTS.md, "Session 30").
@@ -338,6 +339,9 @@ struct FrontEndStats {
   std::uint64_t tracks_predicted = 0;         // tracked primitives predicted in view and not occluded
   std::uint64_t tracks_matched = 0;           // of which matched (the EKF may still gate them: ekf)
   std::uint64_t tracks_inverse_warped = 0;    // of which matched by the inverse warp (inverse_warp_masked)
+  std::uint64_t photometric_normals = 0;      // of which matched again with a photometric normal's template
+  std::uint64_t photometric_refits_unconverged = 0;  // estimates dropped: their refit did not converge
+                                                     // (require_converged_fit)
   TrackFailureCounts track_failures;          // the others, by reason (tracks_predicted = matched + failures)
   EkfStats ekf;
 };

@@ -106,9 +106,15 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
 
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel) {
+  return refine_subpixel(image, tmpl, x, y, iterations, uv_px, covariance_px2, kernel, nullptr);
+}
+
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel,
+                     double* last_step_px) {
   if (!match_kernel_supported(kernel)) return false;
   return refine_with(image, tmpl, x, y, iterations, kRefineStopStepPx, match_kernel::functions(kernel), uv_px,
-                     covariance_px2);
+                     covariance_px2, nullptr, last_step_px);
 }
 
 MatchOutcome search_window(const GrayImageView& image, const NccTemplate& tmpl, const WindowQuery& query,

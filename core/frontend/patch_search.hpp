@@ -52,6 +52,11 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
 // supported here (match_kernel_supported).
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel);
+// The same, also giving the length of the fit's last step (last_step_px): below MatchConfig's
+// subpixel_stop_step_px when the fit converged by the window search's rule.
+bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
+                     int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel,
+                     double* last_step_px);
 
 // Tracking search: integer positions whose offset d from predicted_px has d^T S_inv d <= gate_chi2
 // (the 3-sigma ellipse for gate 9), inside a box of +-half_width x +-half_height pixels.

@@ -191,6 +191,16 @@ void BM_FrontEndTrack20kVgaFullSearch(benchmark::State& state) {
 }
 BENCHMARK(BM_FrontEndTrack20kVgaFullSearch)->Unit(benchmark::kMillisecond)->UseManualTime();
 
+// The same with the fits that do not settle refused (FrontEndConfig::require_converged_fit with 6
+// Gauss-Newton steps; core/frontend/EXPERIMENTS.md, "Session 30").
+void BM_FrontEndTrack20kVgaConvergedFit(benchmark::State& state) {
+  vantage::FrontEndConfig config;
+  config.subpixel_iterations = 6;
+  config.require_converged_fit = true;
+  track_with(state, config);
+}
+BENCHMARK(BM_FrontEndTrack20kVgaConvergedFit)->Unit(benchmark::kMillisecond)->UseManualTime();
+
 // The same with every measurement-model term the consistency work added switched off: no photometric
 // normal, no normal uncertainty in R (no warp covariance), no reference-patch noise (no consider terms),
 // one EKF iteration. What the matcher and a plain EKF cost, i.e. how far configuration alone can bring

@@ -425,6 +425,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     summary.tracks_predicted = fs.tracks_predicted;
     summary.tracks_matched = fs.tracks_matched;
     summary.tracks_inverse_warped = fs.tracks_inverse_warped;
+    summary.photometric_normals = fs.photometric_normals;
+    summary.photometric_refits_unconverged = fs.photometric_refits_unconverged;
     summary.track_failures = fs.track_failures;
     summary.seeds_tried = fs.seeds_tried;
     summary.seeds_matched = fs.seeds_matched;

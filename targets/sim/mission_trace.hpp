@@ -93,6 +93,8 @@ struct MissionSummary {
   std::uint64_t tracks_predicted = 0;
   std::uint64_t tracks_matched = 0;
   std::uint64_t tracks_inverse_warped = 0;  // of the matched: by the inverse warp (--inverse-warp-masked)
+  std::uint64_t photometric_normals = 0;    // of the matched: matched again with a photometric normal
+  std::uint64_t photometric_refits_unconverged = 0;  // photometric normals dropped (--require-converged-fit)
   TrackFailureCounts track_failures;
   // Its seeds: searched along an epipolar line, matched, and refused because the best peak lay past the
   // depth range (FrontEndConfig::epipolar_guard_fraction).

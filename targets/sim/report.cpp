@@ -265,6 +265,8 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"tracks_predicted\": " << s.tracks_predicted << ",\n"
       << "  \"tracks_matched\": " << s.tracks_matched << ",\n"
       << "  \"tracks_inverse_warped\": " << s.tracks_inverse_warped << ",\n"
+      << "  \"photometric_normals\": " << s.photometric_normals << ",\n"
+      << "  \"photometric_refits_unconverged\": " << s.photometric_refits_unconverged << ",\n"
       << "  \"track_failures\": {\"template_masked\": " << s.track_failures.template_masked
       << ", \"below_threshold\": " << s.track_failures.below_threshold << ", \"ambiguous\": " << s.track_failures.ambiguous
       << ", \"no_subpixel\": " << s.track_failures.no_subpixel << ", \"no_room\": " << s.track_failures.no_room

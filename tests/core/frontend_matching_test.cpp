@@ -123,6 +123,26 @@ void template_and_query_at(const GrayImageView& reference, std::int32_t x, std::
   query->half_height_px = half_window;
 }
 
+// A noise image shifted by (0.3, -0.2) px: visit(moved image, template, query, x, y) for the reference's
+// patches on a 3-px grid (112 of them), each with a +-4 px window query at its own position.
+template <typename Visit>
+void for_each_shifted_patch(Visit visit) {
+  const std::int32_t w = 64;
+  const std::int32_t h = 48;
+  const auto reference = noise_image(w, h, 0.0, 0.0);
+  const GrayImageView ref_view{reference.data(), w, h, w};
+  const auto moved = noise_image(w, h, 0.3, -0.2);
+  const GrayImageView moved_view{moved.data(), w, h, w};
+  for (std::int32_t y = 12; y < 36; y += 3) {
+    for (std::int32_t x = 12; x < 52; x += 3) {
+      NccTemplate tmpl;
+      WindowQuery query;
+      template_and_query_at(ref_view, x, y, 4, &tmpl, &query);
+      visit(moved_view, tmpl, query, x, y);
+    }
+  }
+}
+
 }  // namespace
 
 TEST_CASE("a window search finds a subpixel shift of a textured image") {
@@ -155,12 +175,6 @@ TEST_CASE("a window search finds a subpixel shift of a textured image") {
 }
 
 TEST_CASE("a window search that requires a converged fit refuses only the fits that did not converge") {
-  const std::int32_t w = 64;
-  const std::int32_t h = 48;
-  const auto reference = noise_image(w, h, 0.0, 0.0);
-  const GrayImageView ref_view{reference.data(), w, h, w};
-  const auto moved = noise_image(w, h, 0.3, -0.2);
-  const GrayImageView moved_view{moved.data(), w, h, w};
   std::array<float, window_scratch_size(8)> scratch{};
   const Span<float> scratch_span(scratch.data(), scratch.size());
   MatchConfig converged_only;
@@ -172,39 +186,35 @@ TEST_CASE("a window search that requires a converged fit refuses only the fits t
   int kept = 0;
   int refused = 0;
   int kept_after_one_step = 0;
-  for (std::int32_t y = 12; y < 36; y += 3) {
-    for (std::int32_t x = 12; x < 52; x += 3) {
-      NccTemplate tmpl;
-      WindowQuery query;
-      template_and_query_at(ref_view, x, y, 4, &tmpl, &query);
-      Eigen::Vector2d taken;
-      Eigen::Vector2d converged;
-      Eigen::Matrix2d taken_covariance;
-      Eigen::Matrix2d converged_covariance;
-      float best = 0.0f;
-      if (search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span, &taken, &best, &taken_covariance) !=
-          MatchOutcome::kMatched) {
-        continue;
-      }
-      ++searched;
-      MatchOutcome strict = MatchOutcome::kNoRoom;
-      REQUIRE_NO_ALLOCATION(strict = search_window(moved_view, tmpl, query, converged_only, scratch_span, &converged,
-                                                   &best, &converged_covariance));
-      if (strict == MatchOutcome::kMatched) {
-        ++kept;
-        // What it keeps is the same match, bit for bit.
-        CHECK(converged == taken);
-        CHECK(converged_covariance == taken_covariance);
-      } else {
-        ++refused;
-        CHECK(strict == MatchOutcome::kNoSubpixel);
-      }
-      if (search_window(moved_view, tmpl, query, one_step_converged_only, scratch_span, &converged, &best) ==
-          MatchOutcome::kMatched) {
-        ++kept_after_one_step;
-      }
+  for_each_shifted_patch([&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery& query,
+                             std::int32_t, std::int32_t) {
+    Eigen::Vector2d taken;
+    Eigen::Vector2d converged;
+    Eigen::Matrix2d taken_covariance;
+    Eigen::Matrix2d converged_covariance;
+    float best = 0.0f;
+    if (search_window(moved_view, tmpl, query, MatchConfig{}, scratch_span, &taken, &best, &taken_covariance) !=
+        MatchOutcome::kMatched) {
+      return;
     }
-  }
+    ++searched;
+    MatchOutcome strict = MatchOutcome::kNoRoom;
+    REQUIRE_NO_ALLOCATION(strict = search_window(moved_view, tmpl, query, converged_only, scratch_span, &converged,
+                                                 &best, &converged_covariance));
+    if (strict == MatchOutcome::kMatched) {
+      ++kept;
+      // What it keeps is the same match, bit for bit.
+      CHECK(converged == taken);
+      CHECK(converged_covariance == taken_covariance);
+    } else {
+      ++refused;
+      CHECK(strict == MatchOutcome::kNoSubpixel);
+    }
+    if (search_window(moved_view, tmpl, query, one_step_converged_only, scratch_span, &converged, &best) ==
+        MatchOutcome::kMatched) {
+      ++kept_after_one_step;
+    }
+  });
   INFO("searched " << searched << ": kept " << kept << ", refused " << refused << "; kept after one step "
                    << kept_after_one_step);
   REQUIRE(searched > 50);
@@ -212,6 +222,52 @@ TEST_CASE("a window search that requires a converged fit refuses only the fits t
   CHECK(kept > searched / 2);
   CHECK(refused > 0);
   CHECK(kept_after_one_step < kept / 4);
+}
+
+TEST_CASE("refine_subpixel reports its last step: the step itself after one, below the search's stop once settled") {
+  const double stop_step_px = MatchConfig{}.subpixel_stop_step_px;
+  int fits = 0;
+  int long_first_steps = 0;
+  int settled = 0;
+  for_each_shifted_patch([&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery&,
+                             std::int32_t x, std::int32_t y) {
+    const Eigen::Vector2d start(x, y);
+    Eigen::Vector2d plain = start;
+    Eigen::Matrix2d plain_covariance;
+    if (!refine_subpixel(moved_view, tmpl, x, y, 3, &plain, &plain_covariance)) return;
+    ++fits;
+    // The same fit, bit for bit, with the step reported.
+    Eigen::Vector2d reported = start;
+    Eigen::Matrix2d reported_covariance;
+    double last_step_px = -1.0;
+    bool fitted = false;
+    REQUIRE_NO_ALLOCATION(fitted = refine_subpixel(moved_view, tmpl, x, y, 3, &reported, &reported_covariance,
+                                                   MatchKernel::kAuto, &last_step_px));
+    REQUIRE(fitted);
+    CHECK(reported == plain);
+    CHECK(reported_covariance == plain_covariance);
+    CHECK(last_step_px >= 0.0);
+    // One step: the reported length is the move from the start.
+    Eigen::Vector2d one = start;
+    double one_step_px = -1.0;
+    if (refine_subpixel(moved_view, tmpl, x, y, 1, &one, nullptr, MatchKernel::kAuto, &one_step_px)) {
+      CHECK(one_step_px == Approx((one - start).norm()).margin(1e-9));
+      if (one_step_px >= stop_step_px) ++long_first_steps;
+    }
+    // Many steps: the fit settles.
+    Eigen::Vector2d many = start;
+    double many_last_px = -1.0;
+    if (refine_subpixel(moved_view, tmpl, x, y, 20, &many, nullptr, MatchKernel::kAuto, &many_last_px) &&
+        many_last_px < stop_step_px) {
+      ++settled;
+    }
+  });
+  INFO("fits " << fits << ": first step of at least the stop step " << long_first_steps << ", settled within 20 "
+               << settled);
+  REQUIRE(fits > 50);
+  // A 0.36 px shift: every first step from the whole pixel is long; 20 steps settle nearly every fit.
+  CHECK(long_first_steps == fits);
+  CHECK(settled > fits * 9 / 10);
 }
 
 namespace {

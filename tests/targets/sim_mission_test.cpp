@@ -137,6 +137,11 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   const long long matched = json_count(summary, "tracks_matched");
   CHECK(json_count(summary, "tracks_inverse_warped") == 0);  // off by default
   CHECK(json_count(summary, "too_uncertain") == 0);          // max_match_sigma_rad off by default
+  // Photometric normals are counted; none dropped for an unconverged refit (require_converged_fit off).
+  const long long photometric = json_count(summary, "photometric_normals");
+  CHECK(photometric >= 0);
+  CHECK(photometric <= json_count(summary, "tracks_matched"));
+  CHECK(json_count(summary, "photometric_refits_unconverged") == 0);
   long long failed = 0;
   for (const char* reason : {"template_masked", "below_threshold", "ambiguous", "no_subpixel", "no_room", "edge_on",
                              "too_uncertain"}) {
