@@ -153,6 +153,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.max_match_sigma_rad = m.max_match_sigma_rad;
   fc.subpixel_iterations = m.subpixel_iterations;
   fc.require_converged_fit = m.require_converged_fit;
+  fc.match_sigma_floor_rad = m.match_sigma_floor_rad;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

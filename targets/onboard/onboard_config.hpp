@@ -63,6 +63,8 @@ struct MissionSettings {
   // converge within that many steps is not used (off: it is taken as it stands).
   int subpixel_iterations = FrontEndConfig{}.subpixel_iterations;
   bool require_converged_fit = FrontEndConfig{}.require_converged_fit;
+  // FrontEndConfig::match_sigma_floor_rad: the standard deviation added to every match's own, as an angle.
+  double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
 };
 
 struct OnboardConfig {

@@ -53,6 +53,7 @@ mission:
   max_match_sigma_rad: 4.3e-4
   subpixel_iterations: 6
   require_converged_fit: true
+  match_sigma_floor_rad: 1.4e-4
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -78,6 +79,7 @@ mission:
   CHECK(c.mission.max_match_sigma_rad == 4.3e-4);
   CHECK(c.mission.subpixel_iterations == 6);
   CHECK(c.mission.require_converged_fit);
+  CHECK(c.mission.match_sigma_floor_rad == 1.4e-4);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
@@ -87,6 +89,7 @@ mission:
   CHECK(defaults.mission.max_match_sigma_rad == FrontEndConfig{}.max_match_sigma_rad);
   CHECK(defaults.mission.subpixel_iterations == FrontEndConfig{}.subpixel_iterations);
   CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);
+  CHECK(defaults.mission.match_sigma_floor_rad == FrontEndConfig{}.match_sigma_floor_rad);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -120,6 +123,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.max_match_sigma_rad: 0.01 is outside [0, 0.009]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  subpixel_iterations: 21\n") ==
         "onboard.yaml: mission.subpixel_iterations: 21 is outside [0, 20]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  match_sigma_floor_rad: 0\n") ==
+        "onboard.yaml: mission.match_sigma_floor_rad: 0 is outside [1e-06, 0.009]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==
