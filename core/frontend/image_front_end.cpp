@@ -154,6 +154,21 @@ inline Eigen::Matrix2d ImageFrontEnd::measurement_R(const Eigen::Matrix2d& fit_c
   return fit_covariance_px2 + match_floor_px2_;
 }
 
+Eigen::Matrix2d ImageFrontEnd::tilt_floor_excess_px2(const Primitive& p, const Viewpoint& view,
+                                                     const Viewpoint* creating) const {
+  const Eigen::Vector3d n = p.normal_world.cast<double>();
+  const auto tilt_cos = [&](const Eigen::Vector3d& camera_world) {
+    const Eigen::Vector3d sight = camera_world - p.X_world;
+    const double length = sight.norm();
+    return length > 0.0 ? std::abs(n.dot(sight)) / length : 1.0;
+  };
+  double cos_tilt = tilt_cos(view.position_world);
+  if (creating != nullptr) cos_tilt = std::min(cos_tilt, tilt_cos(creating->position_world));
+  cos_tilt = std::max(cos_tilt, kMatchFloorMinCos);
+  // (sigma / cos^k)^2 - sigma^2, per axis.
+  return (std::pow(cos_tilt, -2.0 * config_.match_floor_tilt_power) - 1.0) * match_floor_px2_;
+}
+
 Status FrontEndConfig::validate() const {
   const double values[] = {min_texture_stddev_gray, ncc_min, spawn_ncc_min, inverse_warp_ncc_min, uniqueness_ratio,
                            depth_min, depth_max, max_initial_sigma, warp_min_deviation, min_facing_cos,
@@ -198,6 +213,9 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(max_match_sigma_rad >= 0.0 && max_match_sigma_rad < 0.01)) return Status::kInvalidArgument;
+  if (!(match_floor_tilt_power >= 0.0 && match_floor_tilt_power <= kMaxMatchFloorTiltPower)) {
+    return Status::kInvalidArgument;
+  }
   if (!(facing_normal_tilt_variance >= 0.0) || !(photometric_normal_min_tilt_variance >= 0.0)) {
     return Status::kInvalidArgument;
   }
@@ -584,6 +602,9 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
       ekf.R_px2 = measurement_R(0.5 * fit_covariance) + warp_covariance;
     } else {
       ekf.R_px2 = measurement_R(fit_covariance) + warp_covariance;
+    }
+    if (config_.match_floor_tilt_power > 0.0 && config_.adaptive_R && fit_covariance.allFinite()) {
+      ekf.R_px2 += tilt_floor_excess_px2(pool[i], view, have_creating ? &creating : nullptr);
     }
     // Not used, and not held against the primitive either: its normal, not its point, is in doubt (a
     // rejection would erase an unconfirmed new primitive and count toward track loss).

@@ -40,6 +40,10 @@ inline constexpr std::int32_t kFrontEndMaxHalfWindow = 24;
 inline constexpr std::size_t kFrontEndMaxEpipolarSamples = 2048;
 // The largest FrontEndConfig::epipolar_guard_fraction: the guard holds at most 16 knots a range length.
 inline constexpr double kMaxEpipolarGuardFraction = 4.0;
+// FrontEndConfig::match_floor_tilt_power: at most this power, and the tilt's cosine taken as at least
+// kMatchFloorMinCos (78 degrees), so a grazing view's floor grows at most 0.2^-k times.
+inline constexpr double kMaxMatchFloorTiltPower = 4.0;
+inline constexpr double kMatchFloorMinCos = 0.2;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 // A normal's local plane fit reads the cells within this many of its own (FrontEndConfig::normal_fit_ring_cells).
@@ -107,6 +111,12 @@ struct FrontEndConfig {
   // pixel: the plane's per-match NEES read 0.85 at 320x240 and 1.59 at 640x480 with one 0.05 px floor, and
   // 1.02 at 640x480 with this one (EXPERIMENTS.md, "The match floor as an angle (session 12)").
   double match_sigma_floor_rad = 1.7e-4;
+  // A tracked match's floor grows with the surface's tilt: its standard deviation is match_sigma_floor_rad /
+  // cos^k, cos the smaller of |n . line of sight| in the creating view and in this view (the estimated
+  // normal; at least kMatchFloorMinCos), k this power. The matches' shared error grows with the tilt
+  // (EXPERIMENTS.md, "Session 20", "Session 31"). 0: off, the default; a new primitive's seed match keeps
+  // the plain floor (its normal is not known yet).
+  double match_floor_tilt_power = 0.0;
   // A tracked match whose modelled covariance (R with the warp covariance, plus the reference patch's
   // common error) has a mean standard deviation sqrt(trace / 2) above this angle times the focal length
   // is not used: counted as TrackFailureCounts::too_uncertain, the primitive left as it was (not flagged,
@@ -603,6 +613,8 @@ class ImageFrontEnd final : public MeasurementSource {
   FrontEndConfig config_;
   // config_.match_floor_px2(intrinsics_), formed once at configure(): it enters every match's R.
   Eigen::Matrix2d match_floor_px2_ = Eigen::Matrix2d::Zero();
+  // What FrontEndConfig::match_floor_tilt_power adds to a tracked match's floor (px^2; zero when off).
+  Eigen::Matrix2d tilt_floor_excess_px2(const Primitive& p, const Viewpoint& view, const Viewpoint* creating) const;
   // (config_.max_match_sigma_rad times the mean focal length)^2, formed once at configure(); 0: no limit.
   double max_match_variance_px2_ = 0.0;
   FrontEndStats stats_;

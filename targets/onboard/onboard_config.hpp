@@ -65,6 +65,8 @@ struct MissionSettings {
   bool require_converged_fit = FrontEndConfig{}.require_converged_fit;
   // FrontEndConfig::match_sigma_floor_rad: the standard deviation added to every match's own, as an angle.
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
+  // FrontEndConfig::match_floor_tilt_power: a tracked match's floor / cos(tilt)^k (0: off).
+  double match_floor_tilt_power = FrontEndConfig{}.match_floor_tilt_power;
 };
 
 struct OnboardConfig {

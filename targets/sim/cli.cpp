@@ -109,6 +109,12 @@ int run_cli(int argc, const char* const* argv) {
                  "focal length in px per axis: 1.7e-4 is 0.098 px at the paper's 640x480 camera)")
       ->check(CLI::Range(1e-6, 9e-3))
       ->capture_default_str();
+  app.add_option("--match-floor-tilt-power", options.match_floor_tilt_power,
+                 "image front end: a tracked match's floor grows as 1 / cos(tilt)^K, the tilt the surface's in the "
+                 "creating view or this one, whichever is larger (0: off, the default; 1 with --match-floor-rad 1.1e-4 and "
+                 "--require-converged-fit: more precise verified coverage, less coverage)")
+      ->check(CLI::Range(0.0, vantage::kMaxMatchFloorTiltPower))
+      ->capture_default_str();
   app.add_option("--refit-residual-floor", options.normal_refit_residual_floor,
                  "image front end: a normal refit's tilt variance is at least this times its residual variance "
                  "over its points' spread (0: off, the default; 1: more verified coverage at 600 images, less at 270)")

@@ -230,6 +230,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.inverse_warp_masked = options.inverse_warp_masked;
     fc.inverse_warp_ncc_min = static_cast<float>(options.inverse_warp_ncc_min);
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
+    fc.match_floor_tilt_power = options.match_floor_tilt_power;
     fc.normal_refit_residual_floor = options.normal_refit_residual_floor;
     fc.refit_supersedes_spawn_fit = options.refit_supersedes_spawn_fit;
     fc.normal_spawn_residual_floor = options.normal_spawn_residual_floor;

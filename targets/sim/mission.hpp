@@ -49,6 +49,8 @@ struct MissionOptions {
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
   double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;  // FrontEndConfig::inverse_warp_ncc_min
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
+  // Image front end: FrontEndConfig::match_floor_tilt_power (a tracked match's floor / cos(tilt)^k; 0: off).
+  double match_floor_tilt_power = FrontEndConfig{}.match_floor_tilt_power;
   // Image front end: FrontEndConfig::normal_refit_residual_floor (0: off) and refit_supersedes_spawn_fit.
   double normal_refit_residual_floor = FrontEndConfig{}.normal_refit_residual_floor;
   bool refit_supersedes_spawn_fit = FrontEndConfig{}.refit_supersedes_spawn_fit;

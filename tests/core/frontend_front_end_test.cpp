@@ -1033,6 +1033,76 @@ TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_
   CHECK(narrow.sum_x / narrow.updated < 0.1 * floor_x2);
 }
 
+namespace {
+
+// Every accepted update's R against the floor that match_floor_tilt_power gives it: floor / cos^k, cos the
+// smaller tilt cosine of the primitive's normal in the creating view and in this view (at least 0.2).
+struct TiltFloorObserver final : TrackObserver {
+  Eigen::Matrix2d floor_px2 = Eigen::Matrix2d::Zero();
+  double power = 0.0;
+  std::uint32_t updated = 0;
+  std::uint32_t tilted = 0;          // of which tilted more than 15 degrees in one of the two views
+  double worst_below = 0.0;          // the largest shortfall of R below the tilted floor (px^2)
+  double worst_above = 0.0;          // the largest excess of R over it (the fit's own covariance)
+  double largest_scale = 1.0;
+  void on_observation(const TrackedObservation& o) override {
+    if (!ok(o.outcome)) return;
+    ++updated;
+    const Eigen::Vector3d n = o.prior.normal_world.cast<double>();
+    const auto cos_to = [&](const Eigen::Vector3d& camera) {
+      const Eigen::Vector3d sight = camera - o.prior.X_world;
+      return std::abs(n.dot(sight)) / sight.norm();
+    };
+    const double c = std::max(0.2, std::min(cos_to(o.view.position_world), cos_to(o.creating_view.position_world)));
+    if (c < std::cos(15.0 * M_PI / 180.0)) ++tilted;
+    const double scale = std::pow(c, -2.0 * power);
+    largest_scale = std::max(largest_scale, scale);
+    for (int axis = 0; axis < 2; ++axis) {
+      const double expected = scale * floor_px2(axis, axis);
+      worst_below = std::max(worst_below, expected - o.R_px2(axis, axis));
+      worst_above = std::max(worst_above, o.R_px2(axis, axis) - expected);
+    }
+  }
+};
+
+}  // namespace
+
+TEST_CASE("match_floor_tilt_power grows a tracked match's floor as 1 / cos^k of the surface's tilt") {
+  Scene scene;
+  const auto c = scene.render(third_view());
+  for (double power : {0.0, 2.0}) {
+    FrontEndConfig config = plane_config();
+    config.match_sigma_floor_rad = 4e-3;  // 0.6 px here: the floor dominates R, the fit adds hundredths
+    config.model_normal_uncertainty = false;  // no warp covariance (nor photometric normal) in R
+    config.match_floor_tilt_power = power;
+    initialize_on_plane(scene, first_view(), second_view(), config);
+    TiltFloorObserver observer;
+    observer.power = power;
+    observer.floor_px2 = config.match_floor_px2(scene.k);
+    {
+      const vantage::test::ScopedTrackObserver shown(g_front_end, observer);
+      update_from(c, scene.k, third_view());
+    }
+    INFO("power " << power << ": updated " << observer.updated << ", tilted " << observer.tilted
+                  << ", largest scale " << observer.largest_scale << ", R below the tilted floor by at most "
+                  << observer.worst_below << ", above by at most " << observer.worst_above);
+    REQUIRE(observer.updated > 100u);
+    CHECK(observer.worst_below <= 1e-9);
+    CHECK(observer.worst_above < 0.05);
+    if (power > 0.0) {
+      REQUIRE(observer.tilted > 50u);
+      CHECK(observer.largest_scale > 1.1);
+    }
+  }
+  // Off by default; a power outside [0, kMaxMatchFloorTiltPower] is refused.
+  CHECK(FrontEndConfig{}.match_floor_tilt_power == 0.0);
+  FrontEndConfig bad = plane_config();
+  bad.match_floor_tilt_power = -1.0;
+  CHECK(g_front_end.configure(scene.k, bad) == Status::kInvalidArgument);
+  bad.match_floor_tilt_power = kMaxMatchFloorTiltPower + 1.0;
+  CHECK(g_front_end.configure(scene.k, bad) == Status::kInvalidArgument);
+}
+
 TEST_CASE("the normal fit over the 5 x 5 cells around a primitive finds the plane's normal closer than over the 3 x 3") {
   // Photometric normals off, so the plane fit of the neighbours sets the normals (at spawn and at the
   // refit after 3 updates); merging off, so every tracked primitive counts.

@@ -54,6 +54,7 @@ mission:
   subpixel_iterations: 6
   require_converged_fit: true
   match_sigma_floor_rad: 1.4e-4
+  match_floor_tilt_power: 1
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -80,6 +81,7 @@ mission:
   CHECK(c.mission.subpixel_iterations == 6);
   CHECK(c.mission.require_converged_fit);
   CHECK(c.mission.match_sigma_floor_rad == 1.4e-4);
+  CHECK(c.mission.match_floor_tilt_power == 1.0);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
@@ -90,6 +92,7 @@ mission:
   CHECK(defaults.mission.subpixel_iterations == FrontEndConfig{}.subpixel_iterations);
   CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);
   CHECK(defaults.mission.match_sigma_floor_rad == FrontEndConfig{}.match_sigma_floor_rad);
+  CHECK(defaults.mission.match_floor_tilt_power == FrontEndConfig{}.match_floor_tilt_power);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -125,6 +128,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.subpixel_iterations: 21 is outside [0, 20]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  match_sigma_floor_rad: 0\n") ==
         "onboard.yaml: mission.match_sigma_floor_rad: 0 is outside [1e-06, 0.009]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  match_floor_tilt_power: 5\n") ==
+        "onboard.yaml: mission.match_floor_tilt_power: 5 is outside [0, 4]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==

@@ -102,6 +102,9 @@ TEST_CASE("vantage-sim: a report folder that cannot be written is an error befor
 TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected") {
   CHECK(run({"--planner", "greedy", "--quiet"}) == 1);
   CHECK(run({"--scene", "/nonexistent/scene.toml", "--quiet"}) == 1);
+  // A tilt power outside [0, 4] is refused before the scene loads.
+  CHECK(run({"--match-floor-tilt-power", "5", "--quiet"}) == 1);
+  CHECK(run({"--match-floor-tilt-power", "-1", "--quiet"}) == 1);
 }
 
 TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing in units") {
