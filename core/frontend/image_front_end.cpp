@@ -844,7 +844,7 @@ bool ImageFrontEnd::refine_normal_photometric(PrimitiveIndex i, const GrayImageV
   }
   // Under require_converged_fit the refit must converge by the window search's rule too; if it does not, the
   // estimate is not used and the window search's match stands, as when the refit fails.
-  if (config_.require_converged_fit && !(last_step_px < MatchConfig{}.subpixel_stop_step_px)) {
+  if (config_.require_converged_fit && !(last_step_px < kSubpixelConvergedStepPx)) {
     ++stats_.photometric_refits_unconverged;
     return false;
   }

@@ -25,13 +25,17 @@ enum class MatchOutcome : std::uint8_t {
   kBeyondDepthRange,  // epipolar only: the best peak lies in the guard band past the depth range
 };
 
+// A subpixel fit has converged when its last step is shorter than this (pixels): the searches' stop and
+// their convergence test (MatchConfig::subpixel_stop_step_px's default).
+inline constexpr double kSubpixelConvergedStepPx = 1e-2;
+
 struct MatchConfig {
   float ncc_min = 0.8f;            // NCC a match must reach
   float uniqueness_ratio = 0.95f;  // a second local maximum must stay below ratio * best
   // Gauss-Newton steps of the photometric refinement after the parabola fit (0: parabola only).
   int subpixel_iterations = 3;
   // The fit stops after a step shorter than this (pixels).
-  double subpixel_stop_step_px = 1e-2;
+  double subpixel_stop_step_px = kSubpixelConvergedStepPx;
   // search_window refuses (kNoSubpixel) a fit whose last step was not shorter than subpixel_stop_step_px
   // (the direct path always requires it). Off: such a fit is taken as it stands after its last step.
   bool require_converged_fit = false;
@@ -52,8 +56,8 @@ bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::i
 // supported here (match_kernel_supported).
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel);
-// The same, also giving the length of the fit's last step (last_step_px): below MatchConfig's
-// subpixel_stop_step_px when the fit converged by the window search's rule.
+// The same, also giving the length of the fit's last step (last_step_px): below kSubpixelConvergedStepPx
+// when the fit converged by the window search's rule.
 bool refine_subpixel(const GrayImageView& image, const NccTemplate& tmpl, std::int32_t x, std::int32_t y,
                      int iterations, Eigen::Vector2d* uv_px, Eigen::Matrix2d* covariance_px2, MatchKernel kernel,
                      double* last_step_px);

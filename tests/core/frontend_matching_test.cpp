@@ -123,52 +123,44 @@ void template_and_query_at(const GrayImageView& reference, std::int32_t x, std::
   query->half_height_px = half_window;
 }
 
-// A noise image shifted by (0.3, -0.2) px: visit(moved image, template, query, x, y) for the reference's
-// patches on a 3-px grid (112 of them), each with a +-4 px window query at its own position.
+// A 64 x 48 noise image and the same shifted by `shift` px: visit(moved image, template, query, x, y) for the
+// reference's patches on a grid_px grid (x 12..51, y 12..35; 112 patches at 3 px), each with a
+// +-half_window px window query at its own position.
 template <typename Visit>
-void for_each_shifted_patch(Visit visit) {
+void for_each_shifted_patch(const Eigen::Vector2d& shift, std::int32_t grid_px, std::int32_t half_window, Visit visit) {
   const std::int32_t w = 64;
   const std::int32_t h = 48;
   const auto reference = noise_image(w, h, 0.0, 0.0);
   const GrayImageView ref_view{reference.data(), w, h, w};
-  const auto moved = noise_image(w, h, 0.3, -0.2);
+  const auto moved = noise_image(w, h, shift.x(), shift.y());
   const GrayImageView moved_view{moved.data(), w, h, w};
-  for (std::int32_t y = 12; y < 36; y += 3) {
-    for (std::int32_t x = 12; x < 52; x += 3) {
+  for (std::int32_t y = 12; y < 36; y += grid_px) {
+    for (std::int32_t x = 12; x < 52; x += grid_px) {
       NccTemplate tmpl;
       WindowQuery query;
-      template_and_query_at(ref_view, x, y, 4, &tmpl, &query);
+      template_and_query_at(ref_view, x, y, half_window, &tmpl, &query);
       visit(moved_view, tmpl, query, x, y);
     }
   }
 }
 
+
 }  // namespace
 
 TEST_CASE("a window search finds a subpixel shift of a textured image") {
-  const std::int32_t w = 64;
-  const std::int32_t h = 48;
-  const auto reference = noise_image(w, h, 0.0, 0.0);
-  const GrayImageView ref_view{reference.data(), w, h, w};
   std::array<float, window_scratch_size(8)> scratch{};
   double worst = 0.0;
   for (const auto& shift : {Eigen::Vector2d(0.3, -0.2), Eigen::Vector2d(-1.4, 0.7), Eigen::Vector2d(2.25, 1.6)}) {
-    const auto moved = noise_image(w, h, shift.x(), shift.y());
-    const GrayImageView moved_view{moved.data(), w, h, w};
-    for (std::int32_t y = 12; y < 36; y += 6) {
-      for (std::int32_t x = 12; x < 52; x += 6) {
-        NccTemplate tmpl;
-        WindowQuery query;
-        template_and_query_at(ref_view, x, y, 5, &tmpl, &query);
-        Eigen::Vector2d found;
-        float best = 0.0f;
-        MatchOutcome outcome = MatchOutcome::kNoRoom;
-        REQUIRE_NO_ALLOCATION(outcome = search_window(moved_view, tmpl, query, MatchConfig{},
-                                                      Span<float>(scratch.data(), scratch.size()), &found, &best));
-        REQUIRE(outcome == MatchOutcome::kMatched);
-        worst = std::max(worst, (found - Eigen::Vector2d(x, y) - shift).norm());
-      }
-    }
+    for_each_shifted_patch(shift, 6, 5, [&](const GrayImageView& moved_view, const NccTemplate& tmpl,
+                                            const WindowQuery& query, std::int32_t x, std::int32_t y) {
+      Eigen::Vector2d found;
+      float best = 0.0f;
+      MatchOutcome outcome = MatchOutcome::kNoRoom;
+      REQUIRE_NO_ALLOCATION(outcome = search_window(moved_view, tmpl, query, MatchConfig{},
+                                                    Span<float>(scratch.data(), scratch.size()), &found, &best));
+      REQUIRE(outcome == MatchOutcome::kMatched);
+      worst = std::max(worst, (found - Eigen::Vector2d(x, y) - shift).norm());
+    });
   }
   // The parabola alone locks toward integers (0.37 px worst here); the photometric refinement does not.
   CHECK(worst < 0.1);
@@ -186,7 +178,8 @@ TEST_CASE("a window search that requires a converged fit refuses only the fits t
   int kept = 0;
   int refused = 0;
   int kept_after_one_step = 0;
-  for_each_shifted_patch([&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery& query,
+  for_each_shifted_patch(Eigen::Vector2d(0.3, -0.2), 3, 4,
+                         [&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery& query,
                              std::int32_t, std::int32_t) {
     Eigen::Vector2d taken;
     Eigen::Vector2d converged;
@@ -225,11 +218,12 @@ TEST_CASE("a window search that requires a converged fit refuses only the fits t
 }
 
 TEST_CASE("refine_subpixel reports its last step: the step itself after one, below the search's stop once settled") {
-  const double stop_step_px = MatchConfig{}.subpixel_stop_step_px;
+  const double stop_step_px = kSubpixelConvergedStepPx;
   int fits = 0;
   int long_first_steps = 0;
   int settled = 0;
-  for_each_shifted_patch([&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery&,
+  for_each_shifted_patch(Eigen::Vector2d(0.3, -0.2), 3, 4,
+                         [&](const GrayImageView& moved_view, const NccTemplate& tmpl, const WindowQuery&,
                              std::int32_t x, std::int32_t y) {
     const Eigen::Vector2d start(x, y);
     Eigen::Vector2d plain = start;

@@ -999,6 +999,10 @@ const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga, Matcher 
   if (!run) run = make_bunny_run(resolution, matcher);
   return *run;
 }
+// The facing plane's run or the bunny's.
+const SceneRun& scene_run(bool bunny_scene, Resolution resolution, Matcher matcher = Matcher::kDefault) {
+  return bunny_scene ? bunny_run(resolution, matcher) : plane_run(resolution, matcher);
+}
 
 // The checks every resolution shares: the front end's averaged NEES inside its 95% bands (plane: all and
 // tracked primitives; bunny: all), and the oracle's iterated EKF without a gate consistent on both scenes.
@@ -1240,9 +1244,8 @@ TEST_CASE("refusing the fits that do not converge makes every scene's tracked pr
           "[.][converged-fit]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
-      const SceneRun& before = bunny_scene ? bunny_run(resolution) : plane_run(resolution);
-      const SceneRun& after = bunny_scene ? bunny_run(resolution, Matcher::kConvergedFit)
-                                          : plane_run(resolution, Matcher::kConvergedFit);
+      const SceneRun& before = scene_run(bunny_scene, resolution);
+      const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
       INFO((bunny_scene ? "bunny" : "plane") << (resolution == Resolution::kVga ? " at 640x480" : "")
                                              << ": tracked RMS surface error " << before.tracked.rms_error << " -> "
                                              << after.tracked.rms_error << ", tracked NEES " << before.tracked.mean_nees
@@ -1274,11 +1277,9 @@ TEST_CASE("a floor that grows with the tilt lowers the bunny's NEES below the co
           "[.][tilt-floor]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
-      const SceneRun& before = bunny_scene ? bunny_run(resolution) : plane_run(resolution);
-      const SceneRun& converged = bunny_scene ? bunny_run(resolution, Matcher::kConvergedFit)
-                                              : plane_run(resolution, Matcher::kConvergedFit);
-      const SceneRun& after = bunny_scene ? bunny_run(resolution, Matcher::kTiltFloor)
-                                          : plane_run(resolution, Matcher::kTiltFloor);
+      const SceneRun& before = scene_run(bunny_scene, resolution);
+      const SceneRun& converged = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
+      const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kTiltFloor);
       INFO((bunny_scene ? "bunny" : "plane") << (resolution == Resolution::kVga ? " at 640x480" : "")
                                              << ": all NEES " << before.all.mean_nees << " -> " << after.all.mean_nees
                                              << ", tracked NEES " << before.tracked.mean_nees << " -> "
