@@ -927,7 +927,7 @@ std::string scene_name(const char* scene, Matcher matcher) {
   return std::string(scene) + (matcher == Matcher::kTailOracle     ? " (tail oracle)"
                                : matcher == Matcher::kNormalOracle ? " (normal oracle)"
                                : match_sigma_limit(matcher) == kMatchSigmaLimitRad ? " (match sigma limit)"
-                               : matcher == Matcher::kFeatureTruthLimited ? " (match sigma limit 6e-4)"
+                               : match_sigma_limit(matcher) == kCandidateMatchSigmaLimitRad ? " (match sigma limit 6e-4)"
                                : tilt_floor(matcher)                ? " (converged fits, tilted floor)"
                                : matcher == Matcher::kFeatureTruthConvergedFloor ? " (converged fits, floor 1.4e-4)"
                                : converged_fit(matcher)             ? " (converged fits)"
