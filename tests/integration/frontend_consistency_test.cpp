@@ -1026,6 +1026,10 @@ const SceneRun& bunny_run(Resolution resolution = Resolution::kHalfVga, Matcher 
 const SceneRun& scene_run(bool bunny_scene, Resolution resolution, Matcher matcher = Matcher::kDefault) {
   return bunny_scene ? bunny_run(resolution, matcher) : plane_run(resolution, matcher);
 }
+// The scene's name in the comparison cases' messages: "plane", "bunny at 640x480".
+std::string scene_label(bool bunny_scene, Resolution resolution) {
+  return std::string(bunny_scene ? "bunny" : "plane") + (resolution == Resolution::kVga ? " at 640x480" : "");
+}
 
 // The checks every resolution shares: the front end's averaged NEES inside its 95% bands (plane: all and
 // tracked primitives; bunny: all), and the oracle's iterated EKF without a gate consistent on both scenes.
@@ -1269,11 +1273,11 @@ TEST_CASE("refusing the fits that do not converge makes every scene's tracked pr
     for (bool bunny_scene : {false, true}) {
       const SceneRun& before = scene_run(bunny_scene, resolution);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
-      INFO((bunny_scene ? "bunny" : "plane") << (resolution == Resolution::kVga ? " at 640x480" : "")
-                                             << ": tracked RMS surface error " << before.tracked.rms_error << " -> "
-                                             << after.tracked.rms_error << ", tracked NEES " << before.tracked.mean_nees
-                                             << " -> " << after.tracked.mean_nees << ", match rate "
-                                             << before.all.match_rate << " -> " << after.all.match_rate);
+      INFO(scene_label(bunny_scene, resolution)
+           << ": tracked RMS surface error " << before.tracked.rms_error << " -> "
+           << after.tracked.rms_error << ", tracked NEES " << before.tracked.mean_nees
+           << " -> " << after.tracked.mean_nees << ", match rate "
+           << before.all.match_rate << " -> " << after.all.match_rate);
       REQUIRE(after.tracked.primitives > 150u);
       CHECK(after.tracked.rms_error < before.tracked.rms_error);
       CHECK(after.all.match_rate > before.all.match_rate - 0.1);
@@ -1303,12 +1307,12 @@ TEST_CASE("a floor that grows with the tilt lowers the bunny's NEES below the co
       const SceneRun& before = scene_run(bunny_scene, resolution);
       const SceneRun& converged = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kTiltFloor);
-      INFO((bunny_scene ? "bunny" : "plane") << (resolution == Resolution::kVga ? " at 640x480" : "")
-                                             << ": all NEES " << before.all.mean_nees << " -> " << after.all.mean_nees
-                                             << ", tracked NEES " << before.tracked.mean_nees << " -> "
-                                             << after.tracked.mean_nees << " (converged fits alone "
-                                             << converged.tracked.mean_nees << "), tracked RMS surface error "
-                                             << before.tracked.rms_error << " -> " << after.tracked.rms_error);
+      INFO(scene_label(bunny_scene, resolution)
+           << ": all NEES " << before.all.mean_nees << " -> " << after.all.mean_nees
+           << ", tracked NEES " << before.tracked.mean_nees << " -> "
+           << after.tracked.mean_nees << " (converged fits alone "
+           << converged.tracked.mean_nees << "), tracked RMS surface error "
+           << before.tracked.rms_error << " -> " << after.tracked.rms_error);
       REQUIRE(after.tracked.primitives > 150u);
       CHECK(after.tracked.rms_error < before.tracked.rms_error);
       if (bunny_scene) {
@@ -1426,13 +1430,13 @@ TEST_CASE("against the point a patch shows, the tilted floor is more accurate bu
     for (bool bunny_scene : {false, true}) {
       const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kFeatureTruth);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthTiltFloor);
-      INFO((bunny_scene ? "bunny" : "plane") << (resolution == Resolution::kVga ? " at 640x480" : "")
-                                             << " against the patch's point: all NEES " << before.feature_all.mean_nees
-                                             << " -> " << after.feature_all.mean_nees << ", tracked NEES "
-                                             << before.feature_tracked.mean_nees << " -> "
-                                             << after.feature_tracked.mean_nees << ", tracked RMS point error "
-                                             << before.feature_tracked.rms_point_error << " -> "
-                                             << after.feature_tracked.rms_point_error);
+      INFO(scene_label(bunny_scene, resolution)
+           << " against the patch's point: all NEES " << before.feature_all.mean_nees
+           << " -> " << after.feature_all.mean_nees << ", tracked NEES "
+           << before.feature_tracked.mean_nees << " -> "
+           << after.feature_tracked.mean_nees << ", tracked RMS point error "
+           << before.feature_tracked.rms_point_error << " -> "
+           << after.feature_tracked.rms_point_error);
       REQUIRE(after.feature_tracked.primitives > 150u);
       CHECK(after.feature_tracked.rms_point_error < before.feature_tracked.rms_point_error);
       if (bunny_scene) {
