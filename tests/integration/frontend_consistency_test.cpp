@@ -791,8 +791,10 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // (FrontEndConfig::match_floor_tilt_power 1; EXPERIMENTS.md, "Session 31").
 // kFeatureTruthTiltFloor, kFeatureTruthSigmaLimit, kFeatureTruthConvergedFit, kFeatureTruthConvergedFloor:
 // kTiltFloor, kMatchSigmaLimit, kConvergedFit and kConvergedFit with the match floor at
-// kConvergedFloorCandidateRad (session 31's candidate), also evaluated against the point each primitive's
+// kLowerFloorRad (session 31's candidate), also evaluated against the point each primitive's
 // patch shows (EXPERIMENTS.md, "Session 32").
+// kFeatureTruthLimitFloor, kFeatureTruthSigmaLimitFloor: the match floor at kLowerFloorRad with the match limit
+// at kLimitWithLowerFloorRad or kMatchSigmaLimitRad, fits as the default's (EXPERIMENTS.md, "Session 33").
 enum class Matcher {
   kDefault,
   kInverseWarp,
@@ -806,22 +808,35 @@ enum class Matcher {
   kFeatureTruthTiltFloor,
   kFeatureTruthSigmaLimit,
   kFeatureTruthConvergedFit,
-  kFeatureTruthConvergedFloor
+  kFeatureTruthConvergedFloor,
+  kFeatureTruthLimitFloor,
+  kFeatureTruthSigmaLimitFloor
 };
-constexpr int kMatchers = 13;
+constexpr int kMatchers = 15;
 constexpr double kTiltFloorRad = 1.1e-4;
-constexpr double kConvergedFloorCandidateRad = 1.4e-4;
+constexpr double kLowerFloorRad = 1.4e-4;
+constexpr double kLimitWithLowerFloorRad = 5e-4;  // 0.29 px at 640x480
 constexpr double kMatchSigmaLimitRad = 4.3e-4;         // 0.25 px at 640x480, 0.125 px at 320x240
 constexpr double kCandidateMatchSigmaLimitRad = 6e-4;  // 0.35 px at 640x480
 bool feature_truth(Matcher matcher) {
   return matcher == Matcher::kFeatureTruth || matcher == Matcher::kFeatureTruthLimited ||
          matcher == Matcher::kFeatureTruthTiltFloor || matcher == Matcher::kFeatureTruthSigmaLimit ||
-         matcher == Matcher::kFeatureTruthConvergedFit || matcher == Matcher::kFeatureTruthConvergedFloor;
+         matcher == Matcher::kFeatureTruthConvergedFit || matcher == Matcher::kFeatureTruthConvergedFloor ||
+         matcher == Matcher::kFeatureTruthLimitFloor || matcher == Matcher::kFeatureTruthSigmaLimitFloor;
+}
+// The configurations with the match floor at kLowerFloorRad instead of the default's.
+bool lower_floor(Matcher matcher) {
+  return matcher == Matcher::kFeatureTruthConvergedFloor || matcher == Matcher::kFeatureTruthLimitFloor ||
+         matcher == Matcher::kFeatureTruthSigmaLimitFloor;
 }
 bool tilt_floor(Matcher matcher) { return matcher == Matcher::kTiltFloor || matcher == Matcher::kFeatureTruthTiltFloor; }
 // FrontEndConfig::max_match_sigma_rad of a configuration (0: off).
 double match_sigma_limit(Matcher matcher) {
-  if (matcher == Matcher::kMatchSigmaLimit || matcher == Matcher::kFeatureTruthSigmaLimit) return kMatchSigmaLimitRad;
+  if (matcher == Matcher::kMatchSigmaLimit || matcher == Matcher::kFeatureTruthSigmaLimit ||
+      matcher == Matcher::kFeatureTruthSigmaLimitFloor) {
+    return kMatchSigmaLimitRad;
+  }
+  if (matcher == Matcher::kFeatureTruthLimitFloor) return kLimitWithLowerFloorRad;
   return matcher == Matcher::kFeatureTruthLimited ? kCandidateMatchSigmaLimitRad : 0.0;
 }
 // 6 subpixel steps and the fits that did not converge refused (FrontEndConfig::require_converged_fit).
@@ -839,7 +854,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
     config.subpixel_iterations = 6;
     config.require_converged_fit = true;
   }
-  if (matcher == Matcher::kFeatureTruthConvergedFloor) config.match_sigma_floor_rad = kConvergedFloorCandidateRad;
+  if (lower_floor(matcher)) config.match_sigma_floor_rad = kLowerFloorRad;
   if (tilt_floor(matcher)) {
     config.match_sigma_floor_rad = kTiltFloorRad;
     config.match_floor_tilt_power = 1.0;
@@ -926,6 +941,8 @@ const char* plane_name(Resolution resolution, PlaneTilt tilt) {
 std::string scene_name(const char* scene, Matcher matcher) {
   return std::string(scene) + (matcher == Matcher::kTailOracle     ? " (tail oracle)"
                                : matcher == Matcher::kNormalOracle ? " (normal oracle)"
+                               : matcher == Matcher::kFeatureTruthLimitFloor ? " (match sigma limit 5e-4, floor 1.4e-4)"
+                               : matcher == Matcher::kFeatureTruthSigmaLimitFloor ? " (match sigma limit, floor 1.4e-4)"
                                : match_sigma_limit(matcher) == kMatchSigmaLimitRad ? " (match sigma limit)"
                                : match_sigma_limit(matcher) == kCandidateMatchSigmaLimitRad ? " (match sigma limit 6e-4)"
                                : tilt_floor(matcher)                ? " (converged fits, tilted floor)"
@@ -1359,7 +1376,8 @@ bool in_band(const Figures& f) { return f.mean_nees >= f.band_low && f.mean_nees
 // (0 when every row reads 3; the all rows carry the 640x480 bunny's gross failures). Measured, against the
 // seed ray's point / the patch's point: default 0.392 / 0.474, limit 6e-4 0.351 / 0.394, limit 4.3e-4 0.297 /
 // 0.350, converged fits 0.346 / 0.410, converged fits with the floor at 1.4e-4 0.318 / 0.457, tilted floor
-// 0.271 / 0.547.
+// 0.271 / 0.547; the floor at 1.4e-4 with the limit at 5e-4 0.303 / 0.426, with it at 4.3e-4 0.289 / 0.386
+// (session 33).
 double tracked_distance(Matcher matcher, bool against_patch) {
   double sum = 0.0;
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
@@ -1382,19 +1400,21 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
                                   {"limit 4.3e-4", Matcher::kFeatureTruthSigmaLimit, 1},
                                   {"converged fits", Matcher::kFeatureTruthConvergedFit, 1},
                                   {"converged fits, floor 1.4e-4", Matcher::kFeatureTruthConvergedFloor, 0},
-                                  {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1}};
+                                  {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1},
+                                  {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
+                                  {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       for (bool bunny_scene : {false, true}) {
         const SceneRun& r = scene_run(bunny_scene, resolution, matcher);
         std::printf("candidates | %s | %s %s | seed ray's point: all %.3f%s, tracked %.3f%s | patch's point: all %.3f%s, "
-                    "tracked %.3f%s | tracked RMS surface %.4f, point against the patch's %.4f\n",
+                    "tracked %.3f%s | tracked RMS surface %.4f, point against the patch's %.4f | match rate %.3f\n",
                     name, bunny_scene ? "bunny" : "plane", resolution == Resolution::kVga ? "640x480" : "320x240",
                     r.all.mean_nees, in_band(r.all) ? " (in band)" : "", r.tracked.mean_nees,
                     in_band(r.tracked) ? " (in band)" : "", r.feature_all.mean_nees,
                     in_band(r.feature_all) ? " (in band)" : "", r.feature_tracked.mean_nees,
                     in_band(r.feature_tracked) ? " (in band)" : "", r.tracked.rms_error,
-                    r.feature_tracked.rms_point_error);
+                    r.feature_tracked.rms_point_error, r.all.match_rate);
       }
     }
   };
@@ -1414,6 +1434,40 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
     CHECK(seed < default_seed);
     if (c.against_patch > 0) CHECK(patch < default_patch);
     if (c.against_patch < 0) CHECK(patch > default_patch);
+  }
+}
+
+// Session 33's candidate: the match floor lowered to 1.4e-4 with the match limit at 5e-4 (EXPERIMENTS.md,
+// "Session 33"). Against the seed ray's point every row of both scenes at both resolutions, all and tracked
+// primitives, moves toward 3 or stays as close, both 640x480 plane rows stay in their bands, every tracked
+// RMS surface error is lower, and the match rates keep the floors the default's cases check (plane above
+// 0.85, bunny above 0.5 at 320x240). Measured, default -> candidate (all / tracked): plane 320x240 2.540 /
+// 2.474 -> 2.768 / 2.676, bunny 7.614 / 6.009 -> 4.583 / 4.969, plane 640x480 2.958 / 2.965 -> 3.018 /
+// 3.022, bunny 36.195 / 5.862 -> 12.964 / 5.390; the bunny's 320x240 match rate 0.714 -> 0.533. Its
+// missions lose verified coverage at 600 images (-1.98 points, standard error 0.59), so it is not the
+// default; the same floor with the limit at 4.3e-4 keeps the missions level but takes the bunny's match rate
+// to 0.429 and the 640x480 plane's all row just below its band (2.938, band from 2.944).
+TEST_CASE("with the floor at 1.4e-4, a match limit of 5e-4 moves every row toward 3 and keeps the default's checks",
+          "[.][feature-truth]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    for (bool bunny_scene : {false, true}) {
+      const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kFeatureTruth);
+      const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthLimitFloor);
+      INFO(scene_label(bunny_scene, resolution)
+           << ": all NEES " << before.all.mean_nees << " -> " << after.all.mean_nees << ", tracked NEES "
+           << before.tracked.mean_nees << " -> " << after.tracked.mean_nees << ", tracked RMS surface error "
+           << before.tracked.rms_error << " -> " << after.tracked.rms_error << ", match rate "
+           << before.all.match_rate << " -> " << after.all.match_rate);
+      REQUIRE(after.tracked.primitives > 150u);
+      for (const auto member : {&SceneRun::all, &SceneRun::tracked}) {
+        const double distance_before = std::abs(std::log((before.*member).mean_nees / 3.0));
+        const double distance_after = std::abs(std::log((after.*member).mean_nees / 3.0));
+        CHECK((distance_after < distance_before || in_band(after.*member)));
+        if (!bunny_scene && resolution == Resolution::kVga) CHECK(in_band(after.*member));
+      }
+      CHECK(after.tracked.rms_error < before.tracked.rms_error);
+      CHECK(after.all.match_rate > (bunny_scene ? 0.5 : 0.85));
+    }
   }
 }
 
