@@ -106,7 +106,7 @@ int run_cli(int argc, const char* const* argv) {
                "image front end: low-pass every frame (3x3 binomial) before seeding and matching (default off)");
   app.add_option("--match-floor-rad", options.match_sigma_floor_rad,
                  "image front end: standard deviation added to every match's own, as an angle (rad; times the "
-                 "focal length in px per axis: 1.7e-4 is 0.098 px at the paper's 640x480 camera)")
+                 "focal length in px per axis: 1.5e-4, the default, is 0.087 px at the paper's 640x480 camera)")
       ->check(CLI::Range(1e-6, 9e-3))
       ->capture_default_str();
   app.add_option("--match-floor-tilt-power", options.match_floor_tilt_power,
@@ -122,14 +122,14 @@ int run_cli(int argc, const char* const* argv) {
       ->capture_default_str();
   app.add_option("--spawn-residual-floor", options.normal_spawn_residual_floor,
                  "image front end: a new primitive's plane fit claims a tilt variance of at least this times its "
-                 "residual variance over its points' spread, below the facing prior's (0: off, the default; 1, with "
-                 "--refit-residual-floor 1: more verified coverage at 600 images, level at 270)")
+                 "residual variance over its points' spread, below the facing prior's (0: off; 1, the default: more "
+                 "honest new normals; with --refit-residual-floor 1 also more verified coverage at 600 images)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   app.add_option("--max-match-sigma-rad", options.max_match_sigma_rad,
                  "image front end: a tracked match whose modelled standard deviation exceeds this angle (rad; times "
-                 "the focal length: 4.3e-4 is 0.25 px at 640x480) is not used (0: off, the default; 4.3e-4: more "
-                 "consistent primitives, less coverage at 270 images)")
+                 "the focal length: 7e-4, the default, is 0.41 px at 640x480) is not used (0: off; lower: fewer "
+                 "matches, more consistent primitives)")
       ->check(CLI::Range(0.0, 9e-3))
       ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,

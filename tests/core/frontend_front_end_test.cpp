@@ -161,6 +161,7 @@ TrackCounts track_counts_since(const TrackCounts& before) {
   d.failed.ambiguous = f.ambiguous - before.failed.ambiguous;
   d.failed.no_room = f.no_room - before.failed.no_room;
   d.failed.no_subpixel = f.no_subpixel - before.failed.no_subpixel;
+  d.failed.too_uncertain = f.too_uncertain - before.failed.too_uncertain;
   return d;
 }
 TrackCounts track_counts_now() { return track_counts_since(TrackCounts{}); }
@@ -216,6 +217,9 @@ ObliqueRun track_oblique_view(bool inverse_warp_masked, float inverse_warp_ncc_m
   FrontEndConfig config = plane_config();
   config.inverse_warp_masked = inverse_warp_masked;
   config.inverse_warp_ncc_min = inverse_warp_ncc_min;
+  // The inverse warp alone: at 55 degrees most inverse-warped matches model a standard deviation above the
+  // default max_match_sigma_rad, which would leave them unused.
+  config.max_match_sigma_rad = 0.0;
   initialize_on_plane(scene, first_view(), second_view(), config);
   (void)update_from(scene.render(third_view()), scene.k, third_view());
   const std::uint64_t inverse_before = g_front_end.stats().tracks_inverse_warped;
@@ -769,6 +773,11 @@ TEST_CASE("the photometric normal turns facing-prior normals toward the plane's 
     // The 3 x 3 cells' fit at spawn: on this flat plane the default 5 x 5 fit gives nearly every new
     // primitive a fitted normal, leaving too few on the facing prior to test.
     config.normal_fit_ring_cells = 1;
+    // Nor the spawn fit's residual floor, which lowers a floored claim below the prior's so that the fit
+    // replaces the prior (RayPlaneFitConfig::floored_claim_limit), nor the match limit: a normal on the
+    // facing prior here makes a warp covariance that puts the match above the default limit, unused.
+    config.normal_spawn_residual_floor = 0.0;
+    config.max_match_sigma_rad = 0.0;
     initialize_on_plane(scene, first, second, config);
     UpdateReport report;
     REQUIRE(ok(g_front_end.update(vantage::test::view_of(image, scene.k), third, g_pool, &report)));
@@ -928,7 +937,9 @@ TEST_CASE("max_match_sigma_rad: a match whose modelled sd exceeds the limit is n
   // The limit at the observations' median standard deviation: about half of them lie above it.
   std::array<double, 4096> sorted = off.sigma_px;
   std::sort(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(off.count));
-  const double limit_px = sorted[off.count / 2];
+  // Midway between two neighbours of the sorted list, so no observation sits on the limit itself (where
+  // the front end's angle times focal length and this sqrt could round to opposite sides).
+  const double limit_px = 0.5 * (sorted[off.count / 2] + sorted[off.count / 2 + 1]);
   std::size_t above = 0;
   for (std::size_t k = 0; k < off.count; ++k) above += off.sigma_px[k] > limit_px ? 1u : 0u;
   REQUIRE(above > off.count / 4);
@@ -977,7 +988,7 @@ TEST_CASE("configure refuses a match sigma limit that is negative, not finite or
   FrontEndConfig on;
   on.max_match_sigma_rad = 4.3e-4;
   CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
-  CHECK(FrontEndConfig{}.max_match_sigma_rad == 0.0);
+  CHECK(FrontEndConfig{}.max_match_sigma_rad == 7e-4);  // the default since session 34
 }
 
 namespace {
@@ -1009,6 +1020,7 @@ TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_
   auto observe = [&](double floor_rad) {
     FrontEndConfig config = plane_config();
     config.match_sigma_floor_rad = floor_rad;
+    config.max_match_sigma_rad = 0.0;  // a floor above the default limit would leave every match unused
     initialize_on_plane(scene, first_view(), second_view(), config);
     RDiagonalObserver observer;
     {
@@ -1028,7 +1040,7 @@ TEST_CASE("the match floor is an angle: every match's R holds match_sigma_floor_
   const double ratio = wide.sum_x / wide.sum_y;
   CHECK(ratio > 1.4);
   CHECK(ratio < 1.6);
-  // The default floor (1.7e-4 rad, 0.025 px here) leaves R to the fit.
+  // The default floor (1.5e-4 rad, 0.022 px here) leaves R to the fit.
   const RDiagonalObserver narrow = observe(FrontEndConfig{}.match_sigma_floor_rad);
   CHECK(narrow.sum_x / narrow.updated < 0.1 * floor_x2);
 }
@@ -1073,6 +1085,7 @@ TEST_CASE("match_floor_tilt_power grows a tracked match's floor as 1 / cos^k of 
   for (double power : {0.0, 2.0}) {
     FrontEndConfig config = plane_config();
     config.match_sigma_floor_rad = 4e-3;  // 0.6 px here: the floor dominates R, the fit adds hundredths
+    config.max_match_sigma_rad = 0.0;         // far above the default limit: no match would be used
     config.model_normal_uncertainty = false;  // no warp covariance (nor photometric normal) in R
     config.match_floor_tilt_power = power;
     initialize_on_plane(scene, first_view(), second_view(), config);
@@ -1410,5 +1423,5 @@ TEST_CASE("configure refuses a negative or non-finite refit or spawn residual fl
     on.*floor = 1.0;
     CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), on)));
   }
-  CHECK(FrontEndConfig{}.normal_spawn_residual_floor == 0.0);
+  CHECK(FrontEndConfig{}.normal_spawn_residual_floor == 1.0);  // the default since session 34
 }

@@ -782,7 +782,7 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // match beyond the chi2(2) 99 % quantile against the truth refused, or with the normal oracle: every
 // primitive given its true normal before each update (diagnostics, not configurations).
 // kMatchSigmaLimit: the default with FrontEndConfig::max_match_sigma_rad at kMatchSigmaLimitRad.
-// kFeatureTruth: the default, also evaluated against the point each primitive's patch shows;
+// kFeatureTruth: the default before session 34, also evaluated against the point each primitive's patch shows;
 // kFeatureTruthLimited: the same with max_match_sigma_rad at kCandidateMatchSigmaLimitRad, the default the
 // missions would take (level coverage, more precise primitives within 3 sigmas; EXPERIMENTS.md, "Session 27").
 // kConvergedFit: the default with 6 subpixel steps and the fits that did not converge refused
@@ -795,6 +795,13 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // patch shows (EXPERIMENTS.md, "Session 32").
 // kFeatureTruthLimitFloor, kFeatureTruthSigmaLimitFloor: the match floor at kLowerFloorRad with the match limit
 // at kLimitWithLowerFloorRad or kMatchSigmaLimitRad, fits as the default's (EXPERIMENTS.md, "Session 33").
+// Every configuration from kMatchSigmaLimit on (kFeatureTruth too) starts from the default before session 34
+// (no match limit, the floor at kPreviousFloorRad, no spawn residual floor: previous_default_based), the
+// default they were measured against, so their comparisons keep their meaning; kFeatureTruthDefault is
+// today's default (session 34: the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1) evaluated
+// against the point each patch shows too; kPreviousDefault is the default before session 34, the baseline of
+// the cases that compare a candidate with it. The inverse warp and the oracles start from it too (their
+// claims were measured there); kDefault runs today's default.
 enum class Matcher {
   kDefault,
   kInverseWarp,
@@ -810,9 +817,12 @@ enum class Matcher {
   kFeatureTruthConvergedFit,
   kFeatureTruthConvergedFloor,
   kFeatureTruthLimitFloor,
-  kFeatureTruthSigmaLimitFloor
+  kFeatureTruthSigmaLimitFloor,
+  kFeatureTruthDefault,
+  kPreviousDefault
 };
-constexpr int kMatchers = 15;
+constexpr int kMatchers = 17;
+constexpr double kPreviousFloorRad = 1.7e-4;  // the match floor until session 34
 constexpr double kTiltFloorRad = 1.1e-4;
 constexpr double kLowerFloorRad = 1.4e-4;
 constexpr double kLimitWithLowerFloorRad = 5e-4;  // 0.29 px at 640x480
@@ -822,7 +832,12 @@ bool feature_truth(Matcher matcher) {
   return matcher == Matcher::kFeatureTruth || matcher == Matcher::kFeatureTruthLimited ||
          matcher == Matcher::kFeatureTruthTiltFloor || matcher == Matcher::kFeatureTruthSigmaLimit ||
          matcher == Matcher::kFeatureTruthConvergedFit || matcher == Matcher::kFeatureTruthConvergedFloor ||
-         matcher == Matcher::kFeatureTruthLimitFloor || matcher == Matcher::kFeatureTruthSigmaLimitFloor;
+         matcher == Matcher::kFeatureTruthLimitFloor || matcher == Matcher::kFeatureTruthSigmaLimitFloor ||
+         matcher == Matcher::kFeatureTruthDefault;
+}
+// The configurations measured against the default before session 34 start from it.
+bool previous_default_based(Matcher matcher) {
+  return matcher != Matcher::kDefault && matcher != Matcher::kFeatureTruthDefault;
 }
 // The configurations with the match floor at kLowerFloorRad instead of the default's.
 bool lower_floor(Matcher matcher) {
@@ -837,7 +852,8 @@ double match_sigma_limit(Matcher matcher) {
     return kMatchSigmaLimitRad;
   }
   if (matcher == Matcher::kFeatureTruthLimitFloor) return kLimitWithLowerFloorRad;
-  return matcher == Matcher::kFeatureTruthLimited ? kCandidateMatchSigmaLimitRad : 0.0;
+  if (matcher == Matcher::kFeatureTruthLimited) return kCandidateMatchSigmaLimitRad;
+  return previous_default_based(matcher) ? 0.0 : FrontEndConfig{}.max_match_sigma_rad;
 }
 // 6 subpixel steps and the fits that did not converge refused (FrontEndConfig::require_converged_fit).
 bool converged_fit(Matcher matcher) {
@@ -848,6 +864,10 @@ bool converged_fit(Matcher matcher) {
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
   FrontEndConfig config;
+  if (previous_default_based(matcher)) {
+    config.match_sigma_floor_rad = kPreviousFloorRad;
+    config.normal_spawn_residual_floor = 0.0;
+  }
   config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
   config.max_match_sigma_rad = match_sigma_limit(matcher);
   if (converged_fit(matcher)) {
@@ -948,6 +968,7 @@ std::string scene_name(const char* scene, Matcher matcher) {
                                : tilt_floor(matcher)                ? " (converged fits, tilted floor)"
                                : matcher == Matcher::kFeatureTruthConvergedFloor ? " (converged fits, floor 1.4e-4)"
                                : converged_fit(matcher)             ? " (converged fits)"
+                               : previous_default_based(matcher)    ? " (the default before session 34)"
                                                                       : "");
 }
 
@@ -1178,13 +1199,15 @@ TEST_CASE("on a plane tilted 45 and 60 degrees, front end NEES lies in the 95% c
 // the chi2(2) 99 % quantile takes most of the bunny's excess away, and the facing plane, whose rows are in
 // or near their bands with that tail, turns conservative without it. So the bulk of the matches is modelled
 // conservatively and a tail of wrong ones makes up the difference: item 6 needs both a smaller model for
-// the bulk and a test that finds the tail, not a larger R for every match.
+// the bulk and a test that finds the tail, not a larger R for every match. Measured on the default before
+// session 34 and kept there (Matcher::kPreviousDefault): with today's default the tail oracle takes the
+// bunny's tracked rows 4.53 -> 3.30 (320x240), most of a smaller excess (EXPERIMENTS.md, "Session 34").
 TEST_CASE("refusing the matches the truth puts in the tail takes most of the bunny's over-confidence",
           "[.][tail-oracle]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
-    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny_default = bunny_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& bunny = bunny_run(resolution, Matcher::kTailOracle);
-    const SceneRun& plane_default = plane_run(resolution);
+    const SceneRun& plane_default = plane_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& plane = plane_run(resolution, Matcher::kTailOracle);
     // A tail: asked before the gate, the oracle refuses about a tenth of the bunny's matches (measured 400
     // of 4,205 at 320x240, 1,277 of 12,421 at 640x480; the plane 306 of 17,796 and 1,662 of 50,289), most
@@ -1206,12 +1229,14 @@ TEST_CASE("refusing the matches the truth puts in the tail takes most of the bun
 // With masked templates matched by warping the image (hidden: `integration_tests "[inverse-warp]"`, 6 s in
 // Release; core/frontend/EXPERIMENTS.md, "Matching masked templates by the inverse warp"): more of the
 // predicted observations are matched, and the tracked primitives stay as accurate. Its NEES rows are
-// printed, not checked: the option is off by default because they do not all stay in their bands.
+// printed, not checked: the option is off by default because they do not all stay in their bands. Measured
+// on the default before session 34 and kept there: with today's lower match floor the plane's inverse-warped
+// matches read a mean NEES/2 of 1.40, over their band (EXPERIMENTS.md, "Session 34").
 TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives accurate", "[.][inverse-warp]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
-    const SceneRun& plane_default = plane_run(resolution);
+    const SceneRun& plane_default = plane_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& plane = plane_run(resolution, Matcher::kInverseWarp);
-    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny_default = bunny_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& bunny = bunny_run(resolution, Matcher::kInverseWarp);
     CHECK(plane.all.match_rate > plane_default.all.match_rate);
     CHECK(bunny.all.match_rate > bunny_default.all.match_rate + 0.05);
@@ -1231,10 +1256,12 @@ TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives acc
 // its seed patch's true plane normal with a tilt variance of 1e-4): the tracked primitives' RMS distance to
 // the surface, measured (EXPERIMENTS.md, "Session 24"): bunny 0.0849 -> 0.0397 (320x240) and 0.0385 ->
 // 0.0246 (640x480); planes facing, 45 and 60 degrees 0.0293 -> 0.0271, 0.0303 -> 0.0248, 0.0183 -> 0.0178
-// (320x240) and 0.0389 -> 0.0303, 0.0425 -> 0.0314, 0.0230 -> 0.0193 (640x480). A diagnostic, 20 s.
+// (320x240) and 0.0389 -> 0.0303, 0.0425 -> 0.0314, 0.0230 -> 0.0193 (640x480). A diagnostic, 20 s, measured
+// on the default before session 34 and kept there: today's default already has the bunny's error near the
+// oracle's (0.0417 and 0.0301; EXPERIMENTS.md, "Session 34").
 TEST_CASE("true normals make the bunny's and the tilted planes' tracked primitives more accurate", "[.][normal-oracle]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
-    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny_default = bunny_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& bunny = bunny_run(resolution, Matcher::kNormalOracle);
     INFO("bunny tracked RMS surface error " << bunny_default.tracked.rms_error << " -> " << bunny.tracked.rms_error
                                             << ", NEES " << bunny_default.tracked.mean_nees << " -> "
@@ -1242,7 +1269,7 @@ TEST_CASE("true normals make the bunny's and the tilted planes' tracked primitiv
     REQUIRE(bunny.tracked.primitives > 300u);
     CHECK(bunny.tracked.rms_error < 0.8 * bunny_default.tracked.rms_error);
     for (PlaneTilt tilt : {PlaneTilt::kFacing, PlaneTilt::k45Degrees, PlaneTilt::k60Degrees}) {
-      const SceneRun& plane_default = plane_run(resolution, Matcher::kDefault, tilt);
+      const SceneRun& plane_default = plane_run(resolution, Matcher::kPreviousDefault, tilt);
       const SceneRun& plane = plane_run(resolution, Matcher::kNormalOracle, tilt);
       INFO("plane tilted " << tilt_degrees(tilt) << ": tracked RMS surface error " << plane_default.tracked.rms_error
                            << " -> " << plane.tracked.rms_error);
@@ -1254,16 +1281,17 @@ TEST_CASE("true normals make the bunny's and the tilted planes' tracked primitiv
 // Matches whose modelled standard deviation exceeds kMatchSigmaLimitRad not used (FrontEndConfig::
 // max_match_sigma_rad; hidden: `integration_tests "[match-sigma-limit]"`, run by the Release step;
 // core/frontend/EXPERIMENTS.md, "Session 27"). They are mostly those of poorly known normals, and their
-// errors are not Gaussian. Measured, default -> limited: the bunny's mean NEES, all primitives without gross
-// failures, 5.427 -> 3.875 (320x240) and 6.138 -> 4.902 (640x480); its tracked RMS surface error 0.0849 ->
-// 0.0500 and 0.0385 -> 0.0291; the facing plane's 0.0293 -> 0.0249 and 0.0389 -> 0.0329, its all-primitive
-// NEES 2.540 -> 2.472 and 2.956 -> 2.691 (below its band: the plane turns conservative).
+// errors are not Gaussian. Measured against the default before session 34, default -> limited: the bunny's
+// mean NEES, all primitives without gross failures, 5.427 -> 3.875 (320x240) and 6.138 -> 4.902 (640x480);
+// its tracked RMS surface error 0.0849 -> 0.0500 and 0.0385 -> 0.0291; the facing plane's 0.0293 -> 0.0249
+// and 0.0389 -> 0.0329, its all-primitive NEES 2.540 -> 2.472 and 2.956 -> 2.691 (below its band: the plane
+// turns conservative).
 TEST_CASE("a limit on the matches' modelled sd makes the bunny's primitives more accurate and less over-confident",
           "[.][match-sigma-limit]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
-    const SceneRun& bunny_default = bunny_run(resolution);
+    const SceneRun& bunny_default = bunny_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& bunny = bunny_run(resolution, Matcher::kMatchSigmaLimit);
-    const SceneRun& plane_default = plane_run(resolution);
+    const SceneRun& plane_default = plane_run(resolution, Matcher::kPreviousDefault);
     const SceneRun& plane = plane_run(resolution, Matcher::kMatchSigmaLimit);
     INFO("bunny, all without gross: NEES " << bunny_default.all.mean_nees_without_gross << " -> "
                                            << bunny.all.mean_nees_without_gross << "; tracked RMS surface error "
@@ -1281,14 +1309,15 @@ TEST_CASE("a limit on the matches' modelled sd makes the bunny's primitives more
 }
 
 // Tracked matches whose subpixel fit did not settle refused (hidden: `integration_tests "[converged-fit]"`,
-// run by the Release step; EXPERIMENTS.md, "Session 30"). Measured: every tracked RMS surface error lower
-// (bunny 0.0849 -> 0.0610 at 320x240, 0.0385 -> 0.0322 at 640x480), the bunny's tracked NEES 6.01 -> 5.24
-// and 5.88 -> 5.12, match rates 1.3-6.1 points lower; the planes' NEES falls below its band (printed).
+// run by the Release step; EXPERIMENTS.md, "Session 30"). Measured against the default before session 34:
+// every tracked RMS surface error lower (bunny 0.0849 -> 0.0610 at 320x240, 0.0385 -> 0.0322 at 640x480),
+// the bunny's tracked NEES 6.01 -> 5.24 and 5.88 -> 5.12, match rates 1.3-6.1 points lower; the planes' NEES
+// falls below its band (printed).
 TEST_CASE("refusing the fits that do not converge makes every scene's tracked primitives more accurate",
           "[.][converged-fit]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
-      const SceneRun& before = scene_run(bunny_scene, resolution);
+      const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kPreviousDefault);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
       INFO(scene_label(bunny_scene, resolution)
            << ": tracked RMS surface error " << before.tracked.rms_error << " -> "
@@ -1313,15 +1342,15 @@ TEST_CASE("refusing the fits that do not converge makes every scene's tracked pr
 
 // Converged fits with a floor that grows with the tilt (FrontEndConfig::match_floor_tilt_power 1, the floor
 // at kTiltFloorRad; hidden: `integration_tests "[tilt-floor]"`, run by the Release step; EXPERIMENTS.md,
-// "Session 31"). Measured against the default: tracked NEES bunny 6.009 -> 4.988 (320x240) and 5.862 ->
-// 4.475 (640x480); facing plane all 2.540 -> 2.810 and 2.958 -> 3.022 (in band), tracked 2.474 -> 2.575 and
-// 2.965 -> 2.930 (at its band's lower edge, printed); every tracked RMS surface error lower (bunny 0.0849 ->
-// 0.0576, 0.0384 -> 0.0307).
+// "Session 31"). Measured against the default before session 34: tracked NEES bunny 6.009 -> 4.988
+// (320x240) and 5.862 -> 4.475 (640x480); facing plane all 2.540 -> 2.810 and 2.958 -> 3.022 (in band),
+// tracked 2.474 -> 2.575 and 2.965 -> 2.930 (at its band's lower edge, printed); every tracked RMS surface
+// error lower (bunny 0.0849 -> 0.0576, 0.0384 -> 0.0307).
 TEST_CASE("a floor that grows with the tilt lowers the bunny's NEES below the converged fits' and keeps the 640x480 plane in band",
           "[.][tilt-floor]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
-      const SceneRun& before = scene_run(bunny_scene, resolution);
+      const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kPreviousDefault);
       const SceneRun& converged = scene_run(bunny_scene, resolution, Matcher::kConvergedFit);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kTiltFloor);
       INFO(scene_label(bunny_scene, resolution)
@@ -1404,7 +1433,9 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
                                   {"converged fits, floor 1.4e-4", Matcher::kFeatureTruthConvergedFloor, 0},
                                   {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1},
                                   {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
-                                  {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1}};
+                                  {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
+                                  {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)",
+                                   Matcher::kFeatureTruthDefault, 1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       for (bool bunny_scene : {false, true}) {
@@ -1420,10 +1451,11 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
       }
     }
   };
-  row("default", Matcher::kFeatureTruth);
+  row("default before session 34", Matcher::kFeatureTruth);
   const double default_seed = tracked_distance(Matcher::kFeatureTruth, false);
   const double default_patch = tracked_distance(Matcher::kFeatureTruth, true);
-  std::printf("candidates | default | distance from consistency: seed ray's point %.3f, patch's point %.3f\n",
+  std::printf("candidates | default before session 34 | distance from consistency: seed ray's point %.3f, "
+              "patch's point %.3f\n",
               default_seed, default_patch);
   for (const Candidate& c : candidates) {
     row(c.name, c.matcher);
@@ -1439,22 +1471,16 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
   }
 }
 
-// Session 33's candidate: the match floor lowered to 1.4e-4 with the match limit at 5e-4 (EXPERIMENTS.md,
-// "Session 33"). Against the seed ray's point every row of both scenes at both resolutions, all and tracked
-// primitives, moves toward 3 or stays as close, both 640x480 plane rows stay in their bands, every tracked
-// RMS surface error is lower, and the match rates keep the floors the default's cases check (plane above
-// 0.85, bunny above 0.5 at 320x240). Measured, default -> candidate (all / tracked): plane 320x240 2.540 /
-// 2.474 -> 2.768 / 2.676, bunny 7.614 / 6.009 -> 4.583 / 4.969, plane 640x480 2.958 / 2.965 -> 3.018 /
-// 3.022, bunny 36.195 / 5.862 -> 12.964 / 5.390; the bunny's 320x240 match rate 0.714 -> 0.533. Its
-// missions lose verified coverage at 600 images (-1.98 points, standard error 0.59), so it is not the
-// default; the same floor with the limit at 4.3e-4 keeps the missions level but takes the bunny's match rate
-// to 0.429 and the 640x480 plane's all row just below its band (2.938, band from 2.944).
-TEST_CASE("with the floor at 1.4e-4, a match limit of 5e-4 moves every row toward 3 and keeps the default's checks",
-          "[.][feature-truth]") {
+// A configuration against the default before session 34 (kFeatureTruth), against the seed ray's point:
+// every row of both scenes at both resolutions, all and tracked primitives, moves toward 3 or is in its
+// band, both 640x480 plane rows are in their bands, every tracked RMS surface error is lower (or at most
+// rms_slack higher, a fraction), and the match rates keep the floors the default's cases check (plane above
+// 0.85, bunny above 0.5 at 320x240).
+void check_toward_consistency_with_the_checks(Matcher candidate, double rms_slack) {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
       const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kFeatureTruth);
-      const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthLimitFloor);
+      const SceneRun& after = scene_run(bunny_scene, resolution, candidate);
       INFO(scene_label(bunny_scene, resolution)
            << ": all NEES " << before.all.mean_nees << " -> " << after.all.mean_nees << ", tracked NEES "
            << before.tracked.mean_nees << " -> " << after.tracked.mean_nees << ", tracked RMS surface error "
@@ -1466,10 +1492,33 @@ TEST_CASE("with the floor at 1.4e-4, a match limit of 5e-4 moves every row towar
                in_band(after.*member)));
         if (!bunny_scene && resolution == Resolution::kVga) CHECK(in_band(after.*member));
       }
-      CHECK(after.tracked.rms_error < before.tracked.rms_error);
+      CHECK(after.tracked.rms_error < (1.0 + rms_slack) * before.tracked.rms_error);
       CHECK(after.all.match_rate > (bunny_scene ? 0.5 : 0.85));
     }
   }
+}
+
+// Session 33's candidate: the match floor lowered to 1.4e-4 with the match limit at 5e-4 (EXPERIMENTS.md,
+// "Session 33"). Measured, default before session 34 -> candidate (all / tracked): plane 320x240 2.540 /
+// 2.474 -> 2.768 / 2.676, bunny 7.614 / 6.009 -> 4.583 / 4.969, plane 640x480 2.958 / 2.965 -> 3.018 /
+// 3.022, bunny 36.195 / 5.862 -> 12.964 / 5.390; the bunny's 320x240 match rate 0.714 -> 0.533. Its
+// missions lose verified coverage at 600 images (-1.98 points, standard error 0.59), so it did not become
+// the default; the same floor with the limit at 4.3e-4 keeps the missions level but takes the bunny's match
+// rate to 0.429 and the 640x480 plane's all row just below its band (2.938, band from 2.944).
+TEST_CASE("with the floor at 1.4e-4, a match limit of 5e-4 moves every row toward 3 and keeps the default's checks",
+          "[.][feature-truth]") {
+  check_toward_consistency_with_the_checks(Matcher::kFeatureTruthLimitFloor, 0.0);
+}
+
+// Today's default (session 34: the match limit at 7e-4, the floor at 1.5e-4, the spawn fit's residual floor
+// at 1) against the one before (EXPERIMENTS.md, "Session 34"). Measured, before -> today (all / tracked):
+// plane 320x240 2.540 / 2.474 -> 2.624 / 2.555, bunny 7.614 / 6.009 -> 4.482 / 4.526, plane 640x480 2.958 /
+// 2.965 -> 2.978 / 2.980 (in band), bunny 36.195 / 5.862 -> 13.761 / 5.009; tracked RMS surface error
+// bunny 0.0849 -> 0.0417 and 0.0384 -> 0.0301, plane 0.0293 -> 0.0291 and 0.0390 -> 0.0393 (the one
+// that rises, by 0.8 %: hence the 2 % slack); match rates plane 0.961 -> 0.939, bunny 0.714 -> 0.618.
+TEST_CASE("today's default moves every row toward 3 against the default before session 34 and keeps its checks",
+          "[.][feature-truth]") {
+  check_toward_consistency_with_the_checks(Matcher::kFeatureTruthDefault, 0.02);
 }
 
 // Session 31's tilted floor (kTiltFloor: converged fits, the floor at kTiltFloorRad grown as 1 / cos(tilt),
