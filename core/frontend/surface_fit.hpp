@@ -61,7 +61,8 @@ struct RayPlaneFitConfig {
   // centre's too) over the in-plane spread along the narrower axis, as PlaneFitConfig::residual_tilt_floor:
   // the chi^2 scaling reads the residuals against the points' noise, so a neighbourhood of well-known points
   // (a new primitive beside tracked ones) that is curved or rough at the patch's scale still claims a tilt
-  // known to a degree or two. 0: off (this struct's default; the front end passes FrontEndConfig::normal_spawn_residual_floor, 1).
+  // known to a degree or two. 0: off (this struct's default; the front end passes
+  // FrontEndConfig::normal_spawn_residual_floor, 1 by default).
   double residual_tilt_floor = 0.0;
   // With the floor on, a claim at or above this (rad^2) is lowered to 0.99 of it: the front end passes the
   // facing prior's variance, since a normal replaces one only by claiming less, and a fitted normal is

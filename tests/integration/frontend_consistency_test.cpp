@@ -796,9 +796,8 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // kFeatureTruthLimitFloor, kFeatureTruthSigmaLimitFloor: the match floor at kLowerFloorRad with the match limit
 // at kLimitWithLowerFloorRad or kMatchSigmaLimitRad, fits as the default's (EXPERIMENTS.md, "Session 33").
 // Every configuration from kMatchSigmaLimit on (kFeatureTruth too) starts from the default before session 34
-// (no match limit, the floor at kPreviousFloorRad, no spawn residual floor: previous_default_based), the
-// default they were measured against, so their comparisons keep their meaning; kFeatureTruthDefault is
-// today's default (session 34: the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1) evaluated
+// (previous_default(), previous_default_based), the default they were measured against, so their
+// comparisons keep their meaning; kFeatureTruthDefault is today's default (session 34: the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1) evaluated
 // against the point each patch shows too; kPreviousDefault is the default before session 34, the baseline of
 // the cases that compare a candidate with it. The inverse warp and the oracles start from it too (their
 // claims were measured there); kDefault runs today's default.
@@ -845,15 +844,22 @@ bool lower_floor(Matcher matcher) {
          matcher == Matcher::kFeatureTruthSigmaLimitFloor;
 }
 bool tilt_floor(Matcher matcher) { return matcher == Matcher::kTiltFloor || matcher == Matcher::kFeatureTruthTiltFloor; }
-// FrontEndConfig::max_match_sigma_rad of a configuration (0: off).
+// The default before session 34: no match limit, the floor at kPreviousFloorRad, no spawn residual floor.
+FrontEndConfig previous_default() {
+  FrontEndConfig config;
+  config.max_match_sigma_rad = 0.0;
+  config.match_sigma_floor_rad = kPreviousFloorRad;
+  config.normal_spawn_residual_floor = 0.0;
+  return config;
+}
+// The FrontEndConfig::max_match_sigma_rad a candidate sets (0: none of its own, its base configuration's).
 double match_sigma_limit(Matcher matcher) {
   if (matcher == Matcher::kMatchSigmaLimit || matcher == Matcher::kFeatureTruthSigmaLimit ||
       matcher == Matcher::kFeatureTruthSigmaLimitFloor) {
     return kMatchSigmaLimitRad;
   }
   if (matcher == Matcher::kFeatureTruthLimitFloor) return kLimitWithLowerFloorRad;
-  if (matcher == Matcher::kFeatureTruthLimited) return kCandidateMatchSigmaLimitRad;
-  return previous_default_based(matcher) ? 0.0 : FrontEndConfig{}.max_match_sigma_rad;
+  return matcher == Matcher::kFeatureTruthLimited ? kCandidateMatchSigmaLimitRad : 0.0;
 }
 // 6 subpixel steps and the fits that did not converge refused (FrontEndConfig::require_converged_fit).
 bool converged_fit(Matcher matcher) {
@@ -863,13 +869,9 @@ bool converged_fit(Matcher matcher) {
 
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
-  FrontEndConfig config;
-  if (previous_default_based(matcher)) {
-    config.match_sigma_floor_rad = kPreviousFloorRad;
-    config.normal_spawn_residual_floor = 0.0;
-  }
+  FrontEndConfig config = previous_default_based(matcher) ? previous_default() : FrontEndConfig{};
   config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
-  config.max_match_sigma_rad = match_sigma_limit(matcher);
+  if (match_sigma_limit(matcher) > 0.0) config.max_match_sigma_rad = match_sigma_limit(matcher);
   if (converged_fit(matcher)) {
     config.subpixel_iterations = 6;
     config.require_converged_fit = true;
