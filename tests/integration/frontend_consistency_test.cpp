@@ -800,7 +800,9 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // comparisons keep their meaning; kFeatureTruthDefault is today's default (session 34: the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1) evaluated
 // against the point each patch shows too; kPreviousDefault is the default before session 34, the baseline of
 // the cases that compare a candidate with it. The inverse warp and the oracles start from it too (their
-// claims were measured there); kDefault runs today's default.
+// claims were measured there); kDefault runs today's default. kFeatureTruthDefaultTiltFloor is today's
+// default with the tilted floor (kTiltFloorRad grown as 1 / cos(tilt), fits as the default's; EXPERIMENTS.md,
+// "Session 35").
 enum class Matcher {
   kDefault,
   kInverseWarp,
@@ -818,9 +820,10 @@ enum class Matcher {
   kFeatureTruthLimitFloor,
   kFeatureTruthSigmaLimitFloor,
   kFeatureTruthDefault,
-  kPreviousDefault
+  kPreviousDefault,
+  kFeatureTruthDefaultTiltFloor
 };
-constexpr int kMatchers = 17;
+constexpr int kMatchers = 18;
 constexpr double kPreviousFloorRad = 1.7e-4;  // the match floor until session 34
 constexpr double kTiltFloorRad = 1.1e-4;
 constexpr double kLowerFloorRad = 1.4e-4;
@@ -832,11 +835,12 @@ bool feature_truth(Matcher matcher) {
          matcher == Matcher::kFeatureTruthTiltFloor || matcher == Matcher::kFeatureTruthSigmaLimit ||
          matcher == Matcher::kFeatureTruthConvergedFit || matcher == Matcher::kFeatureTruthConvergedFloor ||
          matcher == Matcher::kFeatureTruthLimitFloor || matcher == Matcher::kFeatureTruthSigmaLimitFloor ||
-         matcher == Matcher::kFeatureTruthDefault;
+         matcher == Matcher::kFeatureTruthDefault || matcher == Matcher::kFeatureTruthDefaultTiltFloor;
 }
 // The configurations measured against the default before session 34 start from it.
 bool previous_default_based(Matcher matcher) {
-  return matcher != Matcher::kDefault && matcher != Matcher::kFeatureTruthDefault;
+  return matcher != Matcher::kDefault && matcher != Matcher::kFeatureTruthDefault &&
+         matcher != Matcher::kFeatureTruthDefaultTiltFloor;
 }
 // The configurations with the match floor at kLowerFloorRad instead of the default's.
 bool lower_floor(Matcher matcher) {
@@ -844,6 +848,8 @@ bool lower_floor(Matcher matcher) {
          matcher == Matcher::kFeatureTruthSigmaLimitFloor;
 }
 bool tilt_floor(Matcher matcher) { return matcher == Matcher::kTiltFloor || matcher == Matcher::kFeatureTruthTiltFloor; }
+// The floor grown with the tilt, on any fits.
+bool grown_floor(Matcher matcher) { return tilt_floor(matcher) || matcher == Matcher::kFeatureTruthDefaultTiltFloor; }
 // The default before session 34: no match limit, the floor at kPreviousFloorRad, no spawn residual floor.
 FrontEndConfig previous_default() {
   FrontEndConfig config;
@@ -877,7 +883,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
     config.require_converged_fit = true;
   }
   if (lower_floor(matcher)) config.match_sigma_floor_rad = kLowerFloorRad;
-  if (tilt_floor(matcher)) {
+  if (grown_floor(matcher)) {
     config.match_sigma_floor_rad = kTiltFloorRad;
     config.match_floor_tilt_power = 1.0;
   }
@@ -968,6 +974,7 @@ std::string scene_name(const char* scene, Matcher matcher) {
                                : match_sigma_limit(matcher) == kMatchSigmaLimitRad ? " (match sigma limit)"
                                : match_sigma_limit(matcher) == kCandidateMatchSigmaLimitRad ? " (match sigma limit 6e-4)"
                                : tilt_floor(matcher)                ? " (converged fits, tilted floor)"
+                               : grown_floor(matcher)               ? " (tilted floor)"
                                : matcher == Matcher::kFeatureTruthConvergedFloor ? " (converged fits, floor 1.4e-4)"
                                : converged_fit(matcher)             ? " (converged fits)"
                                : previous_default_based(matcher)    ? " (the default before session 34)"
@@ -1437,7 +1444,8 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
                                   {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
                                   {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
                                   {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)",
-                                   Matcher::kFeatureTruthDefault, 1}};
+                                   Matcher::kFeatureTruthDefault, 1},
+                                  {"today's default with the tilted floor", Matcher::kFeatureTruthDefaultTiltFloor, -1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       for (bool bunny_scene : {false, true}) {
