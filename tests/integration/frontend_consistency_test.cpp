@@ -1415,7 +1415,7 @@ bool in_band(const Figures& f) { return f.mean_nees >= f.band_low && f.mean_nees
 // seed ray's point / the patch's point: default 0.392 / 0.474, limit 6e-4 0.351 / 0.394, limit 4.3e-4 0.297 /
 // 0.350, converged fits 0.346 / 0.410, converged fits with the floor at 1.4e-4 0.318 / 0.457, tilted floor
 // 0.271 / 0.547; the floor at 1.4e-4 with the limit at 5e-4 0.303 / 0.426, with it at 4.3e-4 0.289 / 0.386
-// (session 33).
+// (session 33); today's default 0.273 / 0.416 (session 34), with the tilted floor 0.181 / 0.554 (session 35).
 // One row's distance from consistency: |ln(mean NEES / 3)|.
 double distance_from_consistency(const Figures& f) { return std::abs(std::log(f.mean_nees / 3.0)); }
 double tracked_distance(Matcher matcher, bool against_patch) {
