@@ -797,10 +797,11 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // at kLimitWithLowerFloorRad or kMatchSigmaLimitRad, fits as the default's (EXPERIMENTS.md, "Session 33").
 // Every configuration from kMatchSigmaLimit on (kFeatureTruth too) starts from the default before session 34
 // (previous_default(), previous_default_based), the default they were measured against, so their
-// comparisons keep their meaning; kFeatureTruthDefault is today's default (session 34: the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1) evaluated
-// against the point each patch shows too; kPreviousDefault is the default before session 34, the baseline of
-// the cases that compare a candidate with it. The inverse warp and the oracles start from it too (their
-// claims were measured there); kDefault runs today's default. kFeatureTruthDefaultTiltFloor is today's
+// comparisons keep their meaning; kFeatureTruthDefault is today's default (session 34: the limit at 7e-4,
+// the floor at 1.5e-4, the spawn floor at 1) evaluated against the point each patch shows too;
+// kPreviousDefault is the default before session 34, the baseline of the cases that compare a candidate with
+// it. The inverse warp and the oracles start from it too (their claims were measured there); kDefault runs
+// today's default. kFeatureTruthDefaultTiltFloor is today's
 // default with the tilted floor (kTiltFloorRad grown as 1 / cos(tilt), fits as the default's; EXPERIMENTS.md,
 // "Session 35").
 enum class Matcher {
@@ -1445,7 +1446,8 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
                                   {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
                                   {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)",
                                    Matcher::kFeatureTruthDefault, 1},
-                                  {"today's default with the tilted floor", Matcher::kFeatureTruthDefaultTiltFloor, -1}};
+                                  {"today's default with the tilted floor",
+                                   Matcher::kFeatureTruthDefaultTiltFloor, -1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       for (bool bunny_scene : {false, true}) {
