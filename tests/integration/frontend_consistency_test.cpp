@@ -777,33 +777,16 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
   std::printf("\n");
 }
 
-// The tracker's configuration: the default, or with masked templates matched by warping the image
-// (FrontEndConfig::inverse_warp_masked, off by default), or the default with the tail oracle: every tracked
-// match beyond the chi2(2) 99 % quantile against the truth refused, or with the normal oracle: every
-// primitive given its true normal before each update (diagnostics, not configurations).
-// kMatchSigmaLimit: the default with FrontEndConfig::max_match_sigma_rad at kMatchSigmaLimitRad.
-// kFeatureTruth: the default before session 34, also evaluated against the point each primitive's patch shows;
-// kFeatureTruthLimited: the same with max_match_sigma_rad at kCandidateMatchSigmaLimitRad, the default the
-// missions would take (level coverage, more precise primitives within 3 sigmas; EXPERIMENTS.md, "Session 27").
-// kConvergedFit: the default with 6 subpixel steps and the fits that did not converge refused
-// (FrontEndConfig::require_converged_fit; EXPERIMENTS.md, "Session 30").
-// kTiltFloor: kConvergedFit with the match floor at kTiltFloorRad grown as 1 / cos(tilt)
-// (FrontEndConfig::match_floor_tilt_power 1; EXPERIMENTS.md, "Session 31").
-// kFeatureTruthTiltFloor, kFeatureTruthSigmaLimit, kFeatureTruthConvergedFit, kFeatureTruthConvergedFloor:
-// kTiltFloor, kMatchSigmaLimit, kConvergedFit and kConvergedFit with the match floor at
-// kLowerFloorRad (session 31's candidate), also evaluated against the point each primitive's
-// patch shows (EXPERIMENTS.md, "Session 32").
-// kFeatureTruthLimitFloor, kFeatureTruthSigmaLimitFloor: the match floor at kLowerFloorRad with the match limit
-// at kLimitWithLowerFloorRad or kMatchSigmaLimitRad, fits as the default's (EXPERIMENTS.md, "Session 33").
-// Every configuration from kMatchSigmaLimit on (kFeatureTruth too) starts from the default before session 34
-// (previous_default(), previous_default_based), the default they were measured against, so their
-// comparisons keep their meaning; kFeatureTruthDefault is today's default (session 34: the limit at 7e-4,
-// the floor at 1.5e-4, the spawn floor at 1) evaluated against the point each patch shows too;
-// kPreviousDefault is the default before session 34, the baseline of the cases that compare a candidate with
-// it. The inverse warp and the oracles start from it too (their claims were measured there); kDefault runs
-// today's default. kFeatureTruthDefaultTiltFloor is today's
-// default with the tilted floor (kTiltFloorRad grown as 1 / cos(tilt), fits as the default's; EXPERIMENTS.md,
-// "Session 35").
+// The tracker's configurations the cases run, one row of kMatcherSettings each. Most rows start from the default
+// before session 34 (previous_default()), the default they were measured against, so their comparisons keep
+// their meaning; kDefault, kFeatureTruthDefault and kFeatureTruthDefaultTiltFloor start from today's (session 34:
+// the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1). kPreviousDefault is the default before session
+// 34, the baseline of the cases that compare a candidate with it. The kFeatureTruth rows are also evaluated
+// against the point each primitive's patch shows (EXPERIMENTS.md, "Session 32"). Two rows are diagnostics, not
+// configurations: the tail oracle refuses every tracked match beyond the chi2(2) 99 % quantile against the truth,
+// the normal oracle gives every primitive its true normal before each update. EXPERIMENTS.md has each
+// configuration's session: the match limits "Session 27" and "Session 33", the converged fits "Session 30", the
+// tilted floor "Session 31" (with converged fits) and "Session 35" (on today's default).
 enum class Matcher {
   kDefault,
   kInverseWarp,
@@ -826,31 +809,65 @@ enum class Matcher {
 };
 constexpr int kMatchers = 18;
 constexpr double kPreviousFloorRad = 1.7e-4;  // the match floor until session 34
-constexpr double kTiltFloorRad = 1.1e-4;
+constexpr double kTiltFloorRad = 1.1e-4;      // grown as 1 / cos(tilt)
 constexpr double kLowerFloorRad = 1.4e-4;
-constexpr double kLimitWithLowerFloorRad = 5e-4;  // 0.29 px at 640x480
+constexpr double kLimitWithLowerFloorRad = 5e-4;       // 0.29 px at 640x480
 constexpr double kMatchSigmaLimitRad = 4.3e-4;         // 0.25 px at 640x480, 0.125 px at 320x240
 constexpr double kCandidateMatchSigmaLimitRad = 6e-4;  // 0.35 px at 640x480
-bool feature_truth(Matcher matcher) {
-  return matcher == Matcher::kFeatureTruth || matcher == Matcher::kFeatureTruthLimited ||
-         matcher == Matcher::kFeatureTruthTiltFloor || matcher == Matcher::kFeatureTruthSigmaLimit ||
-         matcher == Matcher::kFeatureTruthConvergedFit || matcher == Matcher::kFeatureTruthConvergedFloor ||
-         matcher == Matcher::kFeatureTruthLimitFloor || matcher == Matcher::kFeatureTruthSigmaLimitFloor ||
-         matcher == Matcher::kFeatureTruthDefault || matcher == Matcher::kFeatureTruthDefaultTiltFloor;
+
+enum class Base : std::uint8_t { kToday, kBeforeSession34 };
+// What a configuration changes from its base; a zero keeps the base's value.
+struct MatcherSettings {
+  Matcher matcher;  // the row's key, checked against its place in the table
+  Base base;
+  bool against_patch;            // also evaluated against the point each patch shows
+  bool inverse_warp_masked;      // FrontEndConfig::inverse_warp_masked
+  double match_sigma_limit_rad;  // FrontEndConfig::max_match_sigma_rad
+  bool converged_fits;           // 6 subpixel steps and FrontEndConfig::require_converged_fit
+  double match_floor_rad;        // FrontEndConfig::match_sigma_floor_rad
+  double floor_tilt_power;       // FrontEndConfig::match_floor_tilt_power
+  const char* label;             // appended to the scene's name
+};
+constexpr Base kToday = Base::kToday;
+constexpr Base kBefore = Base::kBeforeSession34;
+// Rows: matcher, base, against_patch, inverse_warp_masked, match_sigma_limit_rad, converged_fits, match_floor_rad,
+// floor_tilt_power, label.
+constexpr MatcherSettings kMatcherSettings[kMatchers] = {
+    {Matcher::kDefault, kToday, false, false, 0.0, false, 0.0, 0.0, ""},
+    {Matcher::kInverseWarp, kBefore, false, true, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
+    {Matcher::kTailOracle, kBefore, false, false, 0.0, false, 0.0, 0.0, " (tail oracle)"},
+    {Matcher::kNormalOracle, kBefore, false, false, 0.0, false, 0.0, 0.0, " (normal oracle)"},
+    {Matcher::kMatchSigmaLimit, kBefore, false, false, kMatchSigmaLimitRad, false, 0.0, 0.0, " (match sigma limit)"},
+    {Matcher::kFeatureTruth, kBefore, true, false, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
+    {Matcher::kFeatureTruthLimited, kBefore, true, false, kCandidateMatchSigmaLimitRad, false, 0.0, 0.0,
+     " (match sigma limit 6e-4)"},
+    {Matcher::kConvergedFit, kBefore, false, false, 0.0, true, 0.0, 0.0, " (converged fits)"},
+    {Matcher::kTiltFloor, kBefore, false, false, 0.0, true, kTiltFloorRad, 1.0, " (converged fits, tilted floor)"},
+    {Matcher::kFeatureTruthTiltFloor, kBefore, true, false, 0.0, true, kTiltFloorRad, 1.0,
+     " (converged fits, tilted floor)"},
+    {Matcher::kFeatureTruthSigmaLimit, kBefore, true, false, kMatchSigmaLimitRad, false, 0.0, 0.0,
+     " (match sigma limit)"},
+    {Matcher::kFeatureTruthConvergedFit, kBefore, true, false, 0.0, true, 0.0, 0.0, " (converged fits)"},
+    {Matcher::kFeatureTruthConvergedFloor, kBefore, true, false, 0.0, true, kLowerFloorRad, 0.0,
+     " (converged fits, floor 1.4e-4)"},
+    {Matcher::kFeatureTruthLimitFloor, kBefore, true, false, kLimitWithLowerFloorRad, false, kLowerFloorRad, 0.0,
+     " (match sigma limit 5e-4, floor 1.4e-4)"},
+    {Matcher::kFeatureTruthSigmaLimitFloor, kBefore, true, false, kMatchSigmaLimitRad, false, kLowerFloorRad, 0.0,
+     " (match sigma limit, floor 1.4e-4)"},
+    {Matcher::kFeatureTruthDefault, kToday, true, false, 0.0, false, 0.0, 0.0, ""},
+    {Matcher::kPreviousDefault, kBefore, false, false, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
+    {Matcher::kFeatureTruthDefaultTiltFloor, kToday, true, false, 0.0, false, kTiltFloorRad, 1.0, " (tilted floor)"},
+};
+constexpr bool rows_in_order() {
+  for (int i = 0; i < kMatchers; ++i) {
+    if (static_cast<int>(kMatcherSettings[i].matcher) != i) return false;
+  }
+  return true;
 }
-// The configurations measured against the default before session 34 start from it.
-bool previous_default_based(Matcher matcher) {
-  return matcher != Matcher::kDefault && matcher != Matcher::kFeatureTruthDefault &&
-         matcher != Matcher::kFeatureTruthDefaultTiltFloor;
-}
-// The configurations with the match floor at kLowerFloorRad instead of the default's.
-bool lower_floor(Matcher matcher) {
-  return matcher == Matcher::kFeatureTruthConvergedFloor || matcher == Matcher::kFeatureTruthLimitFloor ||
-         matcher == Matcher::kFeatureTruthSigmaLimitFloor;
-}
-bool tilt_floor(Matcher matcher) { return matcher == Matcher::kTiltFloor || matcher == Matcher::kFeatureTruthTiltFloor; }
-// The floor grown with the tilt, on any fits.
-bool grown_floor(Matcher matcher) { return tilt_floor(matcher) || matcher == Matcher::kFeatureTruthDefaultTiltFloor; }
+static_assert(rows_in_order(), "kMatcherSettings: one row per Matcher, in the enum's order");
+const MatcherSettings& settings(Matcher matcher) { return kMatcherSettings[static_cast<int>(matcher)]; }
+bool feature_truth(Matcher matcher) { return settings(matcher).against_patch; }
+
 // The default before session 34: no match limit, the floor at kPreviousFloorRad, no spawn residual floor.
 FrontEndConfig previous_default() {
   FrontEndConfig config;
@@ -859,35 +876,24 @@ FrontEndConfig previous_default() {
   config.normal_spawn_residual_floor = 0.0;
   return config;
 }
-// The FrontEndConfig::max_match_sigma_rad a candidate sets (0: none of its own, its base configuration's).
-double match_sigma_limit(Matcher matcher) {
-  if (matcher == Matcher::kMatchSigmaLimit || matcher == Matcher::kFeatureTruthSigmaLimit ||
-      matcher == Matcher::kFeatureTruthSigmaLimitFloor) {
-    return kMatchSigmaLimitRad;
+// The row's configuration: its base with the row's changes.
+FrontEndConfig front_end_config(Matcher matcher) {
+  const MatcherSettings& s = settings(matcher);
+  FrontEndConfig config = s.base == Base::kBeforeSession34 ? previous_default() : FrontEndConfig{};
+  config.inverse_warp_masked = s.inverse_warp_masked;
+  if (s.match_sigma_limit_rad > 0.0) config.max_match_sigma_rad = s.match_sigma_limit_rad;
+  if (s.converged_fits) {
+    config.subpixel_iterations = 6;
+    config.require_converged_fit = true;
   }
-  if (matcher == Matcher::kFeatureTruthLimitFloor) return kLimitWithLowerFloorRad;
-  return matcher == Matcher::kFeatureTruthLimited ? kCandidateMatchSigmaLimitRad : 0.0;
-}
-// 6 subpixel steps and the fits that did not converge refused (FrontEndConfig::require_converged_fit).
-bool converged_fit(Matcher matcher) {
-  return matcher == Matcher::kConvergedFit || matcher == Matcher::kFeatureTruthConvergedFit ||
-         matcher == Matcher::kFeatureTruthConvergedFloor || tilt_floor(matcher);
+  if (s.match_floor_rad > 0.0) config.match_sigma_floor_rad = s.match_floor_rad;
+  if (s.floor_tilt_power > 0.0) config.match_floor_tilt_power = s.floor_tilt_power;
+  return config;
 }
 
 SceneRun run_scene(const Scene& scene, Matcher matcher) {
   SceneRun out;
-  FrontEndConfig config = previous_default_based(matcher) ? previous_default() : FrontEndConfig{};
-  config.inverse_warp_masked = matcher == Matcher::kInverseWarp;
-  if (match_sigma_limit(matcher) > 0.0) config.max_match_sigma_rad = match_sigma_limit(matcher);
-  if (converged_fit(matcher)) {
-    config.subpixel_iterations = 6;
-    config.require_converged_fit = true;
-  }
-  if (lower_floor(matcher)) config.match_sigma_floor_rad = kLowerFloorRad;
-  if (grown_floor(matcher)) {
-    config.match_sigma_floor_rad = kTiltFloorRad;
-    config.match_floor_tilt_power = 1.0;
-  }
+  const FrontEndConfig config = front_end_config(matcher);
   double matched = 0.0;
   double predicted = 0.0;
   const bool tail_oracle = matcher == Matcher::kTailOracle;
@@ -967,20 +973,7 @@ const char* plane_name(Resolution resolution, PlaneTilt tilt) {
 }
 
 // The oracles' rows carry their names, so they are not read as the default's.
-std::string scene_name(const char* scene, Matcher matcher) {
-  return std::string(scene) + (matcher == Matcher::kTailOracle     ? " (tail oracle)"
-                               : matcher == Matcher::kNormalOracle ? " (normal oracle)"
-                               : matcher == Matcher::kFeatureTruthLimitFloor ? " (match sigma limit 5e-4, floor 1.4e-4)"
-                               : matcher == Matcher::kFeatureTruthSigmaLimitFloor ? " (match sigma limit, floor 1.4e-4)"
-                               : match_sigma_limit(matcher) == kMatchSigmaLimitRad ? " (match sigma limit)"
-                               : match_sigma_limit(matcher) == kCandidateMatchSigmaLimitRad ? " (match sigma limit 6e-4)"
-                               : tilt_floor(matcher)                ? " (converged fits, tilted floor)"
-                               : grown_floor(matcher)               ? " (tilted floor)"
-                               : matcher == Matcher::kFeatureTruthConvergedFloor ? " (converged fits, floor 1.4e-4)"
-                               : converged_fit(matcher)             ? " (converged fits)"
-                               : previous_default_based(matcher)    ? " (the default before session 34)"
-                                                                      : "");
-}
+std::string scene_name(const char* scene, Matcher matcher) { return std::string(scene) + settings(matcher).label; }
 
 // The plane through the origin, 80 x 80 units, facing +x turned by the tilt about +z, seen on an arc of
 // views (small-baseline pair first).
