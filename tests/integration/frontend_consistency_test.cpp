@@ -779,12 +779,12 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 
 // The tracker's configurations the cases run, one row of kMatcherSettings each. Most rows start from the default
 // before session 34 (previous_default()), the default they were measured against, so their comparisons keep
-// their meaning; kDefault, kFeatureTruthDefault and kFeatureTruthDefaultTiltFloor start from today's (session 34:
-// the limit at 7e-4, the floor at 1.5e-4, the spawn floor at 1). kPreviousDefault is the default before session
-// 34, the baseline of the cases that compare a candidate with it. The kFeatureTruth rows are also evaluated
-// against the point each primitive's patch shows (EXPERIMENTS.md, "Session 32"). Two rows are diagnostics, not
-// configurations: the tail oracle refuses every tracked match beyond the chi2(2) 99 % quantile against the truth,
-// the normal oracle gives every primitive its true normal before each update. EXPERIMENTS.md has each
+// their meaning; the rows whose base is kToday start from today's (session 34: the limit at 7e-4, the floor at
+// 1.5e-4, the spawn floor at 1). kPreviousDefault is the default before session 34, the baseline of the cases
+// that compare a candidate with it. The kFeatureTruth rows are also evaluated against the point each primitive's
+// patch shows (EXPERIMENTS.md, "Session 32"). Two rows are diagnostics, not configurations: the tail oracle
+// refuses every tracked match beyond the chi2(2) 99 % quantile against the truth, the normal oracle gives every
+// primitive its true normal before each update. EXPERIMENTS.md has each
 // configuration's session: the match limits "Session 27" and "Session 33", the converged fits "Session 30", the
 // tilted floor "Session 31" (with converged fits) and "Session 35" (on today's default), the tilted floor with
 // the inverse warp "Session 36".
@@ -890,7 +890,7 @@ FrontEndConfig previous_default() {
 FrontEndConfig front_end_config(Matcher matcher) {
   const MatcherSettings& s = settings(matcher);
   FrontEndConfig config = s.base == Base::kBeforeSession34 ? previous_default() : FrontEndConfig{};
-  config.inverse_warp_masked = s.inverse_warp_masked;
+  if (s.inverse_warp_masked) config.inverse_warp_masked = true;
   if (s.inverse_warp_ncc_min > 0.0f) config.inverse_warp_ncc_min = s.inverse_warp_ncc_min;
   if (s.match_sigma_limit_rad > 0.0) config.max_match_sigma_rad = s.match_sigma_limit_rad;
   if (s.converged_fits) {
