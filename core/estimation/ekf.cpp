@@ -72,6 +72,7 @@ Status ekf_update(Primitive& primitive, const Eigen::Vector2d& observation_px, c
   const Eigen::Matrix2d S_inv = S.inverse();
   const Eigen::Vector2d innovation = observation_px - predicted_px;
   const double mahalanobis2 = innovation.dot(S_inv * innovation);
+  counts.nis.record(mahalanobis2);
   if (!(mahalanobis2 <= config.gate_chi2)) {
     ++counts.gated_outliers;
     return Status::kGatedOutlier;

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "core/common/status.hpp"
+#include "core/estimation/nis_histogram.hpp"
 #include "core/geometry/pinhole_intrinsics.hpp"
 #include "core/geometry/viewpoint.hpp"
 #include "core/model/primitive.hpp"
@@ -28,6 +29,7 @@ struct EkfStats {
   std::uint64_t accepted = 0;
   std::uint64_t gated_outliers = 0;
   std::uint64_t rejected_inputs = 0;  // non-finite, non-SPD or behind-camera inputs
+  NisHistogram nis;                   // every innovation the gate tested, at the prior (accepted or gated)
 };
 
 // The covariance Sigma after one measurement from view at X: the Joseph-form update, symmetrized.

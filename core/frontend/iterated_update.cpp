@@ -189,7 +189,9 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
     }
     if (iteration == 0) {
       const Eigen::Vector2d innovation = observation_px - predicted;
-      if (!(innovation.dot(S_inv * innovation) <= config.gate_chi2)) {
+      const double nis = innovation.dot(S_inv * innovation);
+      counts.nis.record(nis);
+      if (!(nis <= config.gate_chi2)) {
         ++counts.gated_outliers;
         return Status::kGatedOutlier;
       }

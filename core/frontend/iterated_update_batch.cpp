@@ -140,10 +140,12 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
     const Double4 in0 = obs[0] - pred[0];
     const Double4 in1 = obs[1] - pred[1];
     Mask4 gate_ok = {-1, -1, -1, -1};
+    Double4 nis = zero;
     if (iteration == 0) {
       const Double4 v0 = Si00 * in0 + Si01 * in1;
       const Double4 v1 = Si01 * in0 + Si11 * in1;
-      gate_ok = (in0 * v0 + in1 * v1) <= gate;
+      nis = in0 * v0 + in1 * v1;
+      gate_ok = nis <= gate;
     }
     Mask4 iterating = {0, 0, 0, 0};
     for (int l = 0; l < 4; ++l) {
@@ -152,7 +154,11 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
         lane[l] = Lane::kFailed;
         statuses[l] = Status::kNotSpd;
         ++stats->rejected_inputs;
-      } else if (!gate_ok[l]) {
+        continue;
+      }
+      // The innovation the scalar update's gate tests, recorded at the same point.
+      if (iteration == 0) stats->nis.record(nis[l]);
+      if (!gate_ok[l]) {
         lane[l] = Lane::kFailed;
         statuses[l] = Status::kGatedOutlier;
         ++stats->gated_outliers;
@@ -242,9 +248,14 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
       for (int j = 0; j < 2; ++j) cross_new(i, j) = cross[i][j][l];
     }
     if (!update_checks::short_form_trusted(Sigma_new, q.primitive->Sigma_world)) {
-      // The short form cancelled: the scalar update, which takes the Joseph form, from the same inputs.
+      // The short form cancelled: the scalar update, which takes the Joseph form, from the same inputs. Its
+      // counts, but not its innovation, which this lane recorded already.
+      EkfStats redo;
       statuses[l] = iterated_consider_update(*q.primitive, q.common, q.observation_px, view, intrinsics, q.config,
-                                             max_iterations, q.at_prior, stats);
+                                             max_iterations, q.at_prior, &redo);
+      stats->accepted += redo.accepted;
+      stats->gated_outliers += redo.gated_outliers;
+      stats->rejected_inputs += redo.rejected_inputs;
       continue;
     }
     if (!X_new.allFinite() || !cross_new.allFinite()) {

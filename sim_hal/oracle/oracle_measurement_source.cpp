@@ -106,6 +106,7 @@ Status OracleMeasurementSource::initialize(const GrayImageView& /*first*/, const
   UpdateReport local;
   pool_ = &pool;
   owned_count_ = 0;
+  ekf_stats_ = EkfStats{};
   site_of_primitive_.assign(pool.capacity(), kNoSite);
   gated_in_a_row_.assign(pool.capacity(), 0);
   std::fill(site_spawned_.begin(), site_spawned_.end(), 0);
@@ -127,7 +128,6 @@ Status OracleMeasurementSource::update(const GrayImageView& /*image*/, const Vie
   UpdateReport local;
   ++image_index_;
   std::normal_distribution<double> normal(0.0, config_.pixel_sigma_px);
-  EkfStats stats;
   for (PrimitiveIndex i = 0; i < pool.index_bound(); ++i) {
     if (!pool.is_alive(i) || site_of_primitive_[i] == kNoSite) continue;
     const std::size_t site = site_of_primitive_[i];
@@ -137,9 +137,10 @@ Status OracleMeasurementSource::update(const GrayImageView& /*image*/, const Vie
     if (!ok(project(sites_[site].position, view, config_.intrinsics, &uv))) continue;
     ++local.matched;
     const Eigen::Vector2d o = uv + Eigen::Vector2d(normal(rng_), normal(rng_));
-    const Status u = config_.ekf_iterations > 1
-                         ? iterated_ekf_update(pool[i], o, view, config_.intrinsics, ekf_, config_.ekf_iterations, &stats)
-                         : ekf_update(pool[i], o, view, config_.intrinsics, ekf_, &stats);
+    const Status u =
+        config_.ekf_iterations > 1
+            ? iterated_ekf_update(pool[i], o, view, config_.intrinsics, ekf_, config_.ekf_iterations, &ekf_stats_)
+            : ekf_update(pool[i], o, view, config_.intrinsics, ekf_, &ekf_stats_);
     if (ok(u)) {
       ++local.updated;
       gated_in_a_row_[i] = 0;

@@ -66,6 +66,8 @@ class OracleMeasurementSource final : public MeasurementSource {
   // The true surface point behind primitive index (nullptr when the oracle did not create it).
   const Eigen::Vector3d* true_point(PrimitiveIndex index) const;
   const std::vector<SurfaceSample>& sites() const { return sites_; }
+  // The EKF's counts and innovations since initialize(), as ImageFrontEnd::stats().ekf for the tracker.
+  const EkfStats& ekf_stats() const { return ekf_stats_; }
 
  private:
   bool seen(const Viewpoint& view, std::size_t site) const;
@@ -83,6 +85,7 @@ class OracleMeasurementSource final : public MeasurementSource {
   std::size_t owned_count_ = 0;
   Viewpoint previous_view_;
   std::uint32_t image_index_ = 0;
+  EkfStats ekf_stats_;
   std::mt19937_64 rng_;
 };
 

@@ -30,4 +30,16 @@ std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uin
   return line;
 }
 
+std::string innovation_summary(const NisHistogram& innovations) {
+  const NisSummary s = summarize(innovations);
+  if (s.count == 0) return "innovations: none tested";
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "innovations: %llu tested by the gate, median NIS %s%.2f times chi-square(2)'s, %.1f%% beyond its 95%% "
+                "point (honest covariances: 1 and 5%%)",
+                static_cast<unsigned long long>(s.count), s.median_in_top_bin ? "above " : "", s.median_scale,
+                100.0 * s.fraction_beyond_95);
+  return line;
+}
+
 }  // namespace vantage::targets

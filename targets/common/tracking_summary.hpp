@@ -1,7 +1,9 @@
 #pragma once
-// One log line on the image front end's tracked observations, for the targets' end-of-mission output.
+// Log lines on the image front end's tracked observations and the EKF's innovations, for the targets'
+// end-of-mission output.
 #include <string>
 
+#include "core/estimation/nis_histogram.hpp"
 #include "core/frontend/image_front_end.hpp"
 
 namespace vantage::targets {
@@ -15,5 +17,10 @@ std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std
 // "seeding: N seeds searched, x% matched, y% past the depth range" (no newline); a large last share says
 // the configured depth range misses much of the scene. "seeding: no seed searched" for 0.
 std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uint64_t beyond_depth_range);
+
+// "innovations: N tested by the gate, median NIS x times chi-square(2)'s, y% beyond its 95% point (honest
+// covariances: 1 and 5%)" (no newline): the EKF's consistency without ground truth (NisHistogram). A median
+// beyond the 95 % point reads "above x". "innovations: none tested" for an empty histogram.
+std::string innovation_summary(const NisHistogram& innovations);
 
 }  // namespace vantage::targets

@@ -260,6 +260,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
                                                        tracked.tracks_inverse_warped, tracked.track_failures).c_str());
   std::printf("%s\n", targets::seeding_summary(tracked.seeds_tried, tracked.seeds_matched,
                                                       tracked.seeds_beyond_depth_range).c_str());
+  std::printf("%s\n", targets::innovation_summary(tracked.ekf.nis).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {
     *summary = std::string("mission done: ") + to_string(last.done) + ", " + std::to_string(g_executive.images()) +

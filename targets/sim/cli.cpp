@@ -271,6 +271,7 @@ int run_cli(int argc, const char* const* argv) {
         std::cout << "  " << targets::seeding_summary(summary.seeds_tried, summary.seeds_matched,
                                                   summary.seeds_beyond_depth_range) << "\n";
       }
+      std::cout << "  " << targets::innovation_summary(summary.innovations) << "\n";
       if (!out_dir.empty()) {
         const std::string dir = compare ? (std::filesystem::path(out_dir) / to_string(p)).string() : out_dir;
         std::string error;

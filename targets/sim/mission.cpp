@@ -432,6 +432,9 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     summary.seeds_tried = fs.seeds_tried;
     summary.seeds_matched = fs.seeds_matched;
     summary.seeds_beyond_depth_range = fs.seeds_beyond_depth_range;
+    summary.innovations = fs.ekf.nis;
+  } else if (oracle != nullptr) {
+    summary.innovations = oracle->ekf_stats().nis;
   }
   summary.unreachable_nbv = g_executive.unreachable_nbv_count();
   summary.split_fallbacks = g_executive.split_fallback_count();

@@ -217,6 +217,19 @@ bool prepare_output_dir(const std::string& dir, std::string* error) {
   return true;
 }
 
+// {"count": N, "median_scale": x, "median_in_top_bin": b, "beyond_95": y, "bins": [20 counts]}: the bins are
+// chi-square(2)'s twentieths (NisHistogram), so an honest EKF fills them equally.
+std::string innovations_json(const NisHistogram& innovations) {
+  const NisSummary summary = summarize(innovations);
+  std::ostringstream out;
+  out << "{\"count\": " << summary.count << ", \"median_scale\": " << summary.median_scale
+      << ", \"median_in_top_bin\": " << (summary.median_in_top_bin ? "true" : "false")
+      << ", \"beyond_95\": " << summary.fraction_beyond_95 << ", \"bins\": [";
+  for (std::size_t k = 0; k < innovations.counts.size(); ++k) out << (k > 0 ? ", " : "") << innovations.counts[k];
+  out << "]}";
+  return out.str();
+}
+
 std::string summary_json(const MissionSummary& s) {
   std::ostringstream out;
   out.precision(10);
@@ -274,7 +287,8 @@ std::string summary_json(const MissionSummary& s) {
       << "},\n"
       << "  \"seeds_tried\": " << s.seeds_tried << ",\n"
       << "  \"seeds_matched\": " << s.seeds_matched << ",\n"
-      << "  \"seeds_beyond_depth_range\": " << s.seeds_beyond_depth_range << "\n"
+      << "  \"seeds_beyond_depth_range\": " << s.seeds_beyond_depth_range << ",\n"
+      << "  \"innovations\": " << innovations_json(s.innovations) << "\n"
       << "}\n";
   return out.str();
 }

@@ -110,6 +110,9 @@ TEST_CASE("the batched consider update gives the scalar update's statuses, estim
   CHECK(batch_stats.accepted == scalar_stats.accepted);
   CHECK(batch_stats.gated_outliers == scalar_stats.gated_outliers);
   CHECK(batch_stats.rejected_inputs == scalar_stats.rejected_inputs);
+  // The innovations the gates tested, once each (the Joseph-form lanes' scalar redo does not add its own).
+  CHECK(batch_stats.nis.counts == scalar_stats.nis.counts);
+  CHECK(scalar_stats.nis.total() == scalar_stats.accepted + scalar_stats.gated_outliers);
   // Every path was taken: accepted, gated, refused inputs, the Joseph form.
   CHECK(joseph > 10);
   CHECK(scalar_stats.accepted > 500);

@@ -16,6 +16,7 @@
 
 #include <catch2/catch.hpp>
 
+#include "core/estimation/nis_histogram.hpp"
 #include "core/frontend/image_front_end.hpp"
 #include "core/frontend/match_covariance.hpp"
 #include "core/frontend/patch_warp.hpp"
@@ -271,7 +272,24 @@ struct SceneRun {
   Figures feature_all;
   Figures feature_tracked;
   PatchShifts shifts;
+  // Every innovation the EKF's gate tested (EkfStats::nis): the front end's over its views, and each oracle's.
+  NisHistogram innovations;
+  NisHistogram oracle_innovations;
+  NisHistogram oracle_iterated_innovations;
 };
+
+// One line: each source's innovations against chi-square(2) (NisHistogram), honest at 1 and 0.050.
+void print_innovations(const char* scene, const SceneRun& run) {
+  const NisSummary f = summarize(run.innovations);
+  const NisSummary o = summarize(run.oracle_innovations);
+  const NisSummary i = summarize(run.oracle_iterated_innovations);
+  std::printf("%s, innovations (median NIS over chi-square(2)'s, 1 when honest; share beyond its 95%% point, 0.050): "
+              "front end %.3f, %.3f (N=%llu); oracle (95%% gate, EKF) %.3f, %.3f (N=%llu); oracle (no gate, iterated "
+              "EKF) %.3f, %.3f (N=%llu)\n",
+              scene, f.median_scale, f.fraction_beyond_95, static_cast<unsigned long long>(f.count), o.median_scale,
+              o.fraction_beyond_95, static_cast<unsigned long long>(o.count), i.median_scale, i.fraction_beyond_95,
+              static_cast<unsigned long long>(i.count));
+}
 
 // Each accepted tracked update's match against the truth: the seed ray's surface point (as the NEES
 // takes it) projected into the view, its error e = observed - projection over the match's own covariance
@@ -463,6 +481,7 @@ void run_front_end(const Scene& scene, const FrontEndConfig& config, double refu
     *predicted += report.predicted_in_view;
   }
   const FrontEndStats& stats = g_front_end.stats();
+  run->innovations = stats.ekf.nis;
   run->photometric_normals = stats.photometric_normals;
   run->photometric_refits_unconverged = stats.photometric_refits_unconverged;
   std::printf("%s: tracked matches %llu, of which matched again with a photometric normal %llu; photometric normals "
@@ -653,7 +672,8 @@ Figures evaluate_front_end(const Scene& scene, const FrontEndConfig& config, std
 
 // The oracle on the same views, each primitive against its own true point; split (may be null) by
 // missed_views, which reads the front end's intrinsics: run after run_front_end on the same scene.
-Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, TrackSplit* split = nullptr) {
+Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, TrackSplit* split = nullptr,
+                   NisHistogram* innovations = nullptr) {
   sim::OracleConfig config;
   config.intrinsics = scene.config->intrinsics;
   config.site_count = 20000;
@@ -671,6 +691,7 @@ Figures run_oracle(const Scene& scene, double gate_chi2, int ekf_iterations, Tra
     matched += report.matched;
     predicted += report.predicted_in_view;
   }
+  if (innovations != nullptr) *innovations = oracle.ekf_stats().nis;
   Samples samples(scene.surface_distance);
   Samples every_view(scene.surface_distance);
   Samples missed(scene.surface_distance);
@@ -926,8 +947,10 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
     finish(&out.shifts);
   }
   TrackSplit oracle_split;
-  out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations, &oracle_split);
-  out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations);
+  out.oracle = run_oracle(scene, sim::OracleConfig{}.gate_chi2, sim::OracleConfig{}.ekf_iterations, &oracle_split,
+                          &out.oracle_innovations);
+  out.oracle_iterated = run_oracle(scene, std::numeric_limits<double>::max(), config.ekf_iterations, nullptr,
+                                   &out.oracle_iterated_innovations);
   print_match_consistency(scene, config, scene.views.size() - 1);
   print(scene.name, "front end, all primitives", out.all);
   print(scene.name, "front end, >= 3 updates", out.tracked);
@@ -939,6 +962,7 @@ SceneRun run_scene(const Scene& scene, Matcher matcher) {
   print(scene.name, "oracle (95% gate, EKF), matched in every view that sees it", oracle_split.matched_every_view);
   print(scene.name, "oracle (95% gate, EKF), missed a view that sees it", oracle_split.missed_a_view);
   print(scene.name, "oracle (no gate, iterated EKF), all primitives", out.oracle_iterated);
+  print_innovations(scene.name, out);
   if (feature_truth(matcher)) {
     print(scene.name, "front end, all primitives, against the point its patch shows", out.feature_all);
     print(scene.name, "front end, >= 3 updates, against the point its patch shows", out.feature_tracked);
@@ -1100,6 +1124,12 @@ void check_oracle_consistent(Resolution resolution) {
     CHECK(run->oracle_iterated.mean_nees >= run->oracle_iterated.band_low);
     CHECK(run->oracle_iterated.mean_nees <= run->oracle_iterated.band_high);
     CHECK(run->oracle_iterated.above_q99 < 0.02);
+    // Its innovations too, the check a robot can run without ground truth: the median NIS at chi-square(2)'s
+    // within 5 % (the median's standard error is about 1 % at these counts), 5 % beyond the 95 % point.
+    const NisSummary innovations = summarize(run->oracle_iterated_innovations);
+    REQUIRE(innovations.count > 10000u);
+    CHECK(innovations.median_scale == Approx(1.0).margin(0.05));
+    CHECK(innovations.fraction_beyond_95 == Approx(0.05).margin(0.01));
   }
 }
 

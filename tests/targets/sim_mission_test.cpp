@@ -70,6 +70,13 @@ TEST_CASE("vantage-sim: a small oracle mission reaches its goals and writes the 
   CHECK(verified > 0.0);
   CHECK(precise_verified <= precise);
   CHECK(precise_verified >= 0.95 * precise);
+  // Its innovations read as honest without ground truth too: the median NIS at chi-square(2)'s, 5 % beyond
+  // its 95 % point (NisHistogram).
+  const std::size_t innovations = summary.find("\"innovations\": {");
+  REQUIRE(innovations != std::string::npos);
+  CHECK(json_number(summary.substr(innovations), "count") > 10000.0);
+  CHECK(json_number(summary, "median_scale") == Approx(1.0).margin(0.1));
+  CHECK(json_number(summary, "beyond_95") == Approx(0.05).margin(0.02));
   for (const char* file : {"grid.png", "performance.png", "uncertainty.png", "model.ply", "performance.dat"}) {
     INFO(file);
     CHECK(fs::file_size(out / file) > 100u);
@@ -167,6 +174,12 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(beyond >= 0);
   CHECK(seeded + beyond <= tried);
   CHECK(beyond < tried / 20);
+  // Every innovation the gate tested is a matched observation's (not all matches reach the gate: too uncertain).
+  const std::size_t innovations = summary.find("\"innovations\": {");
+  REQUIRE(innovations != std::string::npos);
+  const long long tested = json_count(summary.substr(innovations), "count");
+  CHECK(tested > 0);
+  CHECK(tested <= matched);
   fs::remove_all(out);
 }
 
