@@ -34,12 +34,20 @@ def expect(name, wanted):
 expect("coverage %", ["55", "->", "58.5", "+3.5", "(1.5)", "2", "of", "2"])
 # Precise verified: 50 and 60 % -> 60 and 70 %: +10 each.
 expect("precise verified %", ["55", "->", "65", "+10", "(0)", "2", "of", "2"])
+if "innovation scale" in rows:
+    failures.append("the innovations' figures are printed for runs without them")
 if "verified coverage %" in rows:
     failures.append("a figure no run has is printed")
 # A run without precise primitives has no share: the pair is left out.
 base[1]["precise"] = 0
 rows = table_rows()
 expect("precise verified %", ["50", "->", "60", "+10", "(nan)", "1", "of", "1"])
+# The innovations' figures from the nested summary (median scale, share beyond the 95 % point in %).
+for run, scale, beyond in zip(base + variant, [1.0, 1.2, 1.1, 1.6], [0.05, 0.07, 0.06, 0.09]):
+    run["innovations"] = {"median_scale": scale, "beyond_95": beyond}
+rows = table_rows()
+expect("innovation scale", ["1.1", "->", "1.35", "+0.25", "(0.15)", "2", "of", "2"])
+expect("innovations past 95 %", ["6", "->", "7.5", "+1.5", "(0.5)", "2", "of", "2"])
 if failures:
     print("\n".join(failures))
     sys.exit(1)

@@ -33,6 +33,10 @@ FIGURES = [
     (lambda run: run["precise_verified"] / run["precise"] if run.get("precise") else None,
      "precise verified %", 100.0),
     ("gross", "more than a unit off", 1.0),
+    # The same without ground truth, from the EKF's innovations (core/estimation/nis_histogram.hpp): the median
+    # NIS over chi-square(2)'s and the share beyond its 95 % point (1 and 5 % when honest).
+    (lambda run: run.get("innovations", {}).get("median_scale"), "innovation scale", 1.0),
+    (lambda run: run.get("innovations", {}).get("beyond_95"), "innovations past 95 %", 100.0),
     ("primitives", "primitives", 1.0),
     ("nbv_iterations", "NBV iterations", 1.0),
 ]
