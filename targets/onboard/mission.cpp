@@ -239,10 +239,14 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
           t0 = WallClock::now();
           g_executive.on_image(image, pose);
           timing.update_s += seconds_since(t0);
-          std::printf("image %u/%u at cell (%d,%d): avg sigma %.5f, %zu primitives, NBV iterations %u "
-                      "(s so far: grid %.1f, update %.1f, motion %.1f, capture %.1f)\n",
+          // The innovations so far (NisHistogram): honest covariances read 1 and 5 %.
+          const NisSummary innovations = summarize(g_front_end.stats().ekf.nis);
+          std::printf("image %u/%u at cell (%d,%d): avg sigma %.5f, %zu primitives, NBV iterations %u, innovation "
+                      "scale %.2f with %.1f%% past the 95%% point (s so far: grid %.1f, update %.1f, motion %.1f, "
+                      "capture %.1f)\n",
                       g_executive.images(), m.max_images, action.cell.ix, action.cell.iy, g_executive.precision_level(),
-                      g_pool.size(), g_executive.nbv_iterations(), timing.grid_s, timing.update_s, timing.motion_s,
+                      g_pool.size(), g_executive.nbv_iterations(), innovations.median_scale,
+                      100.0 * innovations.fraction_beyond_95, timing.grid_s, timing.update_s, timing.motion_s,
                       timing.capture_s);
           std::fflush(stdout);
           break;

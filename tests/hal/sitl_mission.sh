@@ -56,6 +56,9 @@ initial=$(sed -n 's/^mission: started from .*: \([0-9]*\) primitives.*/\1/p' "$w
 # ... and the tracked images matched the model's primitives (the end-of-mission tracking line).
 tracked=$(sed -n 's/^tracking: \([0-9]*\) observations predicted in view.*/\1/p' "$work/onboard.out")
 [ "${tracked:-0}" -gt 1000 ] || fail "the tracked images predicted ${tracked:-no} observations in view"
+# ... and the EKF tested their innovations (the end-of-mission innovations line, its consistency check).
+tested=$(sed -n 's/^innovations: \([0-9]*\) tested by the gate.*/\1/p' "$work/onboard.out")
+[ "${tested:-0}" -gt 100 ] || fail "the EKF's gate tested ${tested:-no} innovations"
 captured=$(grep -c '^image ' "$work/onboard.out" || true)
 [ "$captured" -ge $((images - 2)) ] || fail "only $captured images after the initial two"
 grep -q '"msg":"SET_POSITION_TARGET_LOCAL_NED"' "$peer_out" || fail "the peer saw no setpoint"
