@@ -1170,6 +1170,19 @@ TEST_CASE("front end NEES on the bunny lies in the 95% chi-square band", "[!shou
   check_bunny_nees_in_band(bunny_run());
 }
 
+// The same question asked of the innovations, as a robot can ask it (NisHistogram), with the oracle's check:
+// median NIS within 5 % of chi-square(2)'s and 5 % beyond its 95 % point, within a point. KNOWN TO FAIL in the
+// same way (core/frontend/EXPERIMENTS.md, "Session 37"): the plane's innovations are about half what S says
+// (median scale 0.40), the bunny's have twice the honest share beyond the 95 % point (10 %).
+TEST_CASE("front end innovations are honest on the plane and the bunny", "[!shouldfail]") {
+  for (const SceneRun* run : {&plane_run(), &bunny_run()}) {
+    const NisSummary innovations = summarize(run->innovations);
+    REQUIRE(innovations.count > 1000u);
+    CHECK(innovations.median_scale == Approx(1.0).margin(0.05));
+    CHECK(innovations.fraction_beyond_95 == Approx(0.05).margin(0.01));
+  }
+}
+
 // The same band at the missions' 640x480 (four times the primitives; hidden: `integration_tests "[vga]"`,
 // 3 s in Release, too slow for the Debug and ASan suites). The plane has met it since session 12 (the
 // match floor as an angle, the normal fit over the 5 x 5 cells: all 2.957 in [2.943, 3.057], tracked 3.001
