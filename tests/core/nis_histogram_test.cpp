@@ -22,7 +22,7 @@ TEST_CASE("the NIS bins are chi-square(2) quantiles at steps of 5 %, the top one
   CHECK(kChiSquare2DofMedian == Approx(2.0 * std::log(2.0)).epsilon(1e-15));
 }
 
-TEST_CASE("a NIS lands in the bin whose lower edge it reaches; NaN and negative values are not recorded") {
+TEST_CASE("a NIS lands in the bin whose lower edge it reaches, and NaN or negative values are not recorded") {
   NisHistogram h;
   REQUIRE_NO_ALLOCATION(h.record(0.0));
   h.record(kNisBinLowerEdges[7]);
@@ -100,7 +100,7 @@ NisHistogram ekf_innovations(double noise_sd_px, double r_sd_px, int trials) {
 }  // namespace
 
 TEST_CASE(
-    "an EKF whose R is the observations' noise has uniform NIS bins; one that understates or overstates it does not") {
+    "an EKF whose R is the observations' noise has uniform NIS bins, one that understates or overstates it does not") {
   const int trials = 20000;
   const NisHistogram honest = ekf_innovations(0.5, 0.5, trials);
   const NisSummary h = summarize(honest);
