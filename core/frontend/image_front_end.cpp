@@ -176,7 +176,8 @@ Status FrontEndConfig::validate() const {
                            merge_plane_sigmas, merge_max_radius_px, occlusion_sigmas, match_sigma_floor_rad,
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
-                           normal_refit_residual_floor, normal_spawn_residual_floor, max_match_sigma_rad};
+                           normal_refit_residual_floor, normal_spawn_residual_floor, max_match_sigma_rad,
+                           view_correlated_error_scale, view_correlation_deg};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -213,6 +214,7 @@ Status FrontEndConfig::validate() const {
     return Status::kInvalidArgument;
   }
   if (!(max_match_sigma_rad >= 0.0 && max_match_sigma_rad < 0.01)) return Status::kInvalidArgument;
+  if (!(view_correlated_error_scale >= 0.0) || !finite_positive(view_correlation_deg)) return Status::kInvalidArgument;
   if (!(match_floor_tilt_power >= 0.0 && match_floor_tilt_power <= kMaxMatchFloorTiltPower)) {
     return Status::kInvalidArgument;
   }
@@ -368,7 +370,7 @@ Status ImageFrontEnd::initialize(const GrayImageView& first, const Viewpoint& fi
   reset_cells();
   const GrayImageView first_frame = working_frame(first, &smoothed_image_);
   const GrayImageView second_frame = working_frame(second, &previous_image_);
-  spawn(first_frame, first_view, first_index, second_frame, second_view, pool, out);
+  spawn(first_frame, first_view, first_index, second_frame, second_view, first_index + 1, pool, out);
   remember(second_frame, second_view);
   initialized_ = true;
   ++stats_.frames_accepted;
@@ -384,6 +386,8 @@ void ImageFrontEnd::forget_primitive_tables() {
   for (TemplateNoise& noise : template_noise_) {
     noise.cross_covariance.setZero();
     noise.covariance_px2.setZero();
+    noise.correlated_cross_covariance.setZero();
+    noise.correlated_view = 0;
   }
   rejected_in_a_row_.fill(0);
 }
@@ -406,7 +410,7 @@ Status ImageFrontEnd::update(const GrayImageView& image, const Viewpoint& view, 
   // A new view from (almost) the previous position has no baseline to triangulate new surface from.
   if ((view.position_world - previous_view_.position_world).norm() > 1e-6 * (1.0 + view.position_world.norm())) {
     const std::uint32_t index = next_view_index_;
-    spawn(frame, view, index, previous_image_.view().as_const(), previous_view_, pool, out);
+    spawn(frame, view, index, previous_image_.view().as_const(), previous_view_, index - 1, pool, out);
   }
   remember(frame, view);
   ++stats_.frames_accepted;
@@ -596,8 +600,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     const bool template_noise = config_.model_template_noise && config_.adaptive_R && i < kFrontEndMaxPrimitives &&
                                 fit_covariance.allFinite() && template_noise_[i].covariance_px2.trace() > 0.0f;
     if (template_noise) {
-      common.covariance_px2 = template_noise_[i].covariance_px2.cast<double>();
-      common.cross_covariance = template_noise_[i].cross_covariance.cast<double>();
+      common_error_for_match(i, pool[i], view, &common);
       common.B = matched.B;
       ekf.R_px2 = measurement_R(0.5 * fit_covariance) + warp_covariance;
     } else {
@@ -672,7 +675,16 @@ void ImageFrontEnd::after_update(const PendingUpdate& pending, Status updated, P
   const std::size_t centre_cell = pending.centre_cell;
   Primitive& p = pool[i];
   if (ok(updated) && pending.template_noise) {
-    template_noise_[i].cross_covariance = pending.common.cross_covariance.cast<float>();
+    TemplateNoise& noise = template_noise_[i];
+    if (config_.view_correlated_error_scale > 0.0) {
+      // The update carried the sum c + s, and c's part apart (common_error_for_match).
+      noise.cross_covariance = pending.common.part_cross_covariance.cast<float>();
+      noise.correlated_cross_covariance =
+          (pending.common.cross_covariance - pending.common.part_cross_covariance).cast<float>();
+      noise.correlated_view = next_view_index_;
+    } else {
+      noise.cross_covariance = pending.common.cross_covariance.cast<float>();
+    }
   }
   if (ok(updated)) {
     ++report.updated;
@@ -1075,11 +1087,14 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
 }
 
 void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
-                                            const Eigen::Matrix2d& R_other_px2, const Eigen::Matrix2d& fit_covariance_px2) {
+                                            std::uint32_t other_index, const Eigen::Matrix2d& R_other_px2,
+                                            const Eigen::Matrix2d& fit_covariance_px2) {
   if (i >= kFrontEndMaxPrimitives) return;
   TemplateNoise& noise = template_noise_[i];
   noise.cross_covariance.setZero();
   noise.covariance_px2.setZero();
+  noise.correlated_cross_covariance.setZero();
+  noise.correlated_view = other_index;
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H;
   if (!config_.model_template_noise || !config_.adaptive_R || !fit_covariance_px2.allFinite() ||
@@ -1091,7 +1106,34 @@ void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p
   // (the unwarped epipolar match: B = I).
   const Eigen::Matrix2d P_c = 0.5 * fit_covariance_px2;
   noise.covariance_px2 = P_c.cast<float>();
-  noise.cross_covariance = (p.Sigma_world * H.transpose() * R_other_px2.inverse() * P_c).cast<float>();
+  const Eigen::Matrix<double, 3, 2> gain_px = p.Sigma_world * H.transpose() * R_other_px2.inverse();
+  noise.cross_covariance = (gain_px * P_c).cast<float>();
+  // The view-correlated error s displaced that match too (R_other_px2 holds its covariance, see spawn).
+  noise.correlated_cross_covariance = (gain_px * (config_.view_correlated_error_scale * P_c)).cast<float>();
+}
+
+void ImageFrontEnd::common_error_for_match(PrimitiveIndex i, const Primitive& p, const Viewpoint& view,
+                                           CommonObservationError* common) const {
+  const TemplateNoise& noise = template_noise_[i];
+  common->covariance_px2 = noise.covariance_px2.cast<double>();
+  common->cross_covariance = noise.cross_covariance.cast<double>();
+  const double scale = config_.view_correlated_error_scale;
+  if (!(scale > 0.0)) return;
+  // c + s: covariance P_c (1 + scale), cross-covariance C_c + rho C_s with rho the correlation between s
+  // here and s at its last update's view (a view no longer in the table is taken as uncorrelated).
+  double rho = 0.0;
+  Viewpoint last;
+  if (ok(view_pose(noise.correlated_view, &last))) {
+    const Eigen::Vector3d a = last.position_world - p.X_world;
+    const Eigen::Vector3d b = view.position_world - p.X_world;
+    const double angle_deg = std::atan2(a.cross(b).norm(), a.dot(b)) * (180.0 / EIGEN_PI);
+    rho = std::exp(-angle_deg / config_.view_correlation_deg);
+  }
+  common->has_part = true;
+  common->part_covariance_px2 = common->covariance_px2;
+  common->part_cross_covariance = common->cross_covariance;
+  common->covariance_px2 *= 1.0 + scale;
+  common->cross_covariance += rho * noise.correlated_cross_covariance.cast<double>();
 }
 
 double ImageFrontEnd::normal_tilt_variance(PrimitiveIndex i) const {
@@ -1208,7 +1250,7 @@ void ImageFrontEnd::merge_neighbours(const Viewpoint& view, PrimitivePoolView& p
 
 void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& reference_view,
                           std::uint32_t reference_index, const GrayImageView& other, const Viewpoint& other_view,
-                          PrimitivePoolView& pool, UpdateReport& report) {
+                          std::uint32_t other_index, PrimitivePoolView& pool, UpdateReport& report) {
   const double focal = focal_mean(intrinsics_);
   const std::int32_t stride = config_.seed_stride_px;
   const MatchConfig match{config_.spawn_ncc_min, config_.uniqueness_ratio, config_.subpixel_iterations};
@@ -1255,6 +1297,10 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
       observation.R_b_px2 = measurement_R(fit_covariance);
+      // The view-correlated error's share of this match (FrontEndConfig::view_correlated_error_scale x P_c).
+      if (config_.model_template_noise && config_.adaptive_R && fit_covariance.allFinite()) {
+        observation.R_b_px2 += config_.view_correlated_error_scale * 0.5 * fit_covariance;
+      }
       bool triangulated = ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world));
       if (triangulated && config_.model_normal_uncertainty && config_.model_spawn_normal_uncertainty && config_.adaptive_R) {
         // Again with the unknown normal's share of the match error (spawn_warp_covariance, at X).
@@ -1289,7 +1335,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       ++report.spawned;
       if (index < kFrontEndMaxPrimitives) rejected_in_a_row_[index] = 0;
       set_normal_tilt_variance(index, config_.facing_normal_tilt_variance, NormalSource::kFacingPrior);
-      remember_template_noise(index, p, other_view, observation.R_b_px2, fit_covariance);
+      remember_template_noise(index, p, other_view, other_index, observation.R_b_px2, fit_covariance);
       cell_primitive_[cell] = index;
       cell_depth_[cell] = static_cast<float>(depth);
       cell_state_[cell] |= kCellSpawned;

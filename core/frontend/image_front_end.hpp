@@ -185,6 +185,17 @@ struct FrontEndConfig {
   // the fit's residual holds both frames' noise), and half of each later match's fit covariance is its
   // own, independent part. Needs adaptive_R.
   bool model_template_noise = true;
+  // The view-correlated match error (EXPERIMENTS.md, "Session 38"): besides the patch's noise, a match of
+  // the same patch is displaced by an appearance error that changes slowly with the viewpoint (resampling
+  // and aliasing of the same texture, the patch's non-planarity and shading at nearly the same geometry),
+  // so consecutive matches share it and only matches from well-separated views average it away. Modelled
+  // as a second common error s beside the patch noise c (core/frontend/iterated_update.hpp), with
+  // covariance view_correlated_error_scale x P_c and correlation exp(-angle / view_correlation_deg)
+  // between two views (the angle at the primitive between the cameras); its cross-covariance with the
+  // position error decays by that factor between updates. It enters the new primitive's two-view match
+  // too. Needs model_template_noise. 0: off (the default; the owner's table, core/frontend/README.md).
+  double view_correlated_error_scale = 0.0;
+  double view_correlation_deg = 30.0;
   // A new primitive rests on one two-view match. The first image after its creation must confirm it:
   // when it is not predicted in view there (a wrong match behind the surface stays hidden by the depth
   // buffer for good), or its match fails or is gated, it is erased rather than kept with an estimate
@@ -604,11 +615,17 @@ class ImageFrontEnd final : public MeasurementSource {
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
-                               const Eigen::Matrix2d& R_other_px2, const Eigen::Matrix2d& fit_covariance_px2);
+                               std::uint32_t other_index, const Eigen::Matrix2d& R_other_px2,
+                               const Eigen::Matrix2d& fit_covariance_px2);
+  // Primitive i's common error for a match in `view` (view index next_view_index_): the patch noise and,
+  // with view_correlated_error_scale, the view-correlated error decayed since its last update.
+  void common_error_for_match(PrimitiveIndex i, const Primitive& p, const Viewpoint& view,
+                              CommonObservationError* common) const;
   void set_normal_tilt_variance(PrimitiveIndex i, double variance, NormalSource source);
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
-             const GrayImageView& other, const Viewpoint& other_view, PrimitivePoolView& pool, UpdateReport& report);
+             const GrayImageView& other, const Viewpoint& other_view, std::uint32_t other_index,
+             PrimitivePoolView& pool, UpdateReport& report);
   // Keeps `image` (the frame as the matcher read it) as the previous frame; no copy when it already is
   // previous_image_.
   void remember(const GrayImageView& image, const Viewpoint& view);
@@ -654,9 +671,13 @@ class ImageFrontEnd final : public MeasurementSource {
   std::array<std::uint8_t, kFrontEndMaxPrimitives> rejected_in_a_row_{};
   // The reference patch's noise per primitive (FrontEndConfig::model_template_noise): its covariance in
   // the creating image and its cross-covariance with the position error. Zero: not modelled.
+  // With view_correlated_error_scale, also the view-correlated error's cross-covariance at the view of
+  // the last accepted update (or the spawn's other view), and that view's index.
   struct TemplateNoise {
     Eigen::Matrix<float, 3, 2, Eigen::DontAlign> cross_covariance;
     Eigen::Matrix<float, 2, 2, Eigen::DontAlign> covariance_px2;
+    Eigen::Matrix<float, 3, 2, Eigen::DontAlign> correlated_cross_covariance;
+    std::uint32_t correlated_view;
   };
   std::array<TemplateNoise, kFrontEndMaxPrimitives> template_noise_;
 

@@ -52,6 +52,7 @@ double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
                  nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
                  nonfinite_probe(common.covariance_px2) + nonfinite_probe(common.cross_covariance) +
                  nonfinite_probe(common.B);
+  if (common.has_part) probe += nonfinite_probe(common.part_covariance_px2) + nonfinite_probe(common.part_cross_covariance);
   if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
   return probe == 0.0;
 }
@@ -125,12 +126,14 @@ double mahalanobis_squared(const Eigen::Matrix3d& Sigma, const Eigen::Vector3d& 
   return joseph + mixed + mixed.transpose();
 }
 
-// C' = (I - KH) C + K B P_c.
+// C' = (I - KH) C + K B P_c, for the whole common error or one part of it.
 [[gnu::noinline]] Eigen::Matrix<double, 3, 2> updated_cross_covariance(const Eigen::Matrix<double, 3, 2>& K,
                                                                        const Eigen::Matrix<double, 2, 3>& H,
-                                                                       const CommonObservationError& common) {
-  const Eigen::Matrix<double, 3, 2> kept = common.cross_covariance - K * (H * common.cross_covariance);
-  return kept + K * (common.B * common.covariance_px2);
+                                                                       const Eigen::Matrix<double, 3, 2>& C,
+                                                                       const Eigen::Matrix2d& B,
+                                                                       const Eigen::Matrix2d& P_c) {
+  const Eigen::Matrix<double, 3, 2> kept = C - K * (H * C);
+  return kept + K * (B * P_c);
 }
 
 // The posterior covariance for K, the last linearization point's own gain (G = K S): Sigma - K G^T, or
@@ -211,14 +214,20 @@ Status consider_update(Primitive& primitive, CommonObservationError* common, con
   // form, a sum of positive semidefinite terms without the consider part.
   Eigen::Matrix3d Sigma_new;
   const bool positive_definite = updated_covariance(K, G, H, Sigma, CB, R_total, &Sigma_new);
-  const Eigen::Matrix<double, 3, 2> cross = updated_cross_covariance(K, H, *common);
-  if (!X.allFinite() || !cross.allFinite() || !positive_definite) {
+  const Eigen::Matrix<double, 3, 2> cross =
+      updated_cross_covariance(K, H, common->cross_covariance, common->B, common->covariance_px2);
+  const Eigen::Matrix<double, 3, 2> part_cross =
+      common->has_part
+          ? updated_cross_covariance(K, H, common->part_cross_covariance, common->B, common->part_covariance_px2)
+          : common->part_cross_covariance;
+  if (!X.allFinite() || !cross.allFinite() || !part_cross.allFinite() || !positive_definite) {
     ++counts.rejected_inputs;
     return Status::kNotSpd;
   }
   primitive.X_world = X;
   primitive.Sigma_world = Sigma_new;
   common->cross_covariance = cross;
+  common->part_cross_covariance = part_cross;
   ++primitive.observation_count;
   ++counts.accepted;
   return Status::kOk;

@@ -13,6 +13,11 @@
 // away: S = H Sigma H^T - H C B^T - B C^T H^T + B P_c B^T + R, K = (Sigma H^T - C B^T) S^-1,
 // Sigma' = (I - KH) Sigma (I - KH)^T + (I - KH) C B^T K^T + K B C^T (I - KH)^T + K (B P_c B^T + R) K^T,
 // C' = (I - KH) C + K B P_c. With P_c = 0 and C = 0 it is the iterated EKF.
+//
+// c may be a sum of independent parts whose cross-covariances the caller keeps apart (the front end's
+// view-correlated match error decorrelates between views while the patch noise does not): the update is
+// made with the sum, and one part's cross-covariance C_p, with its covariance P_p, is carried along by the
+// same rule, C_p' = (I - KH) C_p + K B P_p, so that the caller can take the other part as C' - C_p'.
 #include <Eigen/Core>
 
 #include "core/common/status.hpp"
@@ -29,6 +34,11 @@ struct CommonObservationError {
   Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Zero();
   Eigen::Matrix<double, 3, 2> cross_covariance = Eigen::Matrix<double, 3, 2>::Zero();
   Eigen::Matrix2d B = Eigen::Matrix2d::Identity();
+  // One part of c (see above): its covariance and cross-covariance, shares of the two above, read and
+  // updated only with has_part (without, the update does not touch them: a frame's worth of instructions).
+  bool has_part = false;
+  Eigen::Matrix2d part_covariance_px2 = Eigen::Matrix2d::Zero();
+  Eigen::Matrix<double, 3, 2> part_cross_covariance = Eigen::Matrix<double, 3, 2>::Zero();
 
   // The common error's covariance in this image: B P_c B^T (px^2).
   Eigen::Matrix2d projected_px2() const { return B * covariance_px2 * B.transpose(); }

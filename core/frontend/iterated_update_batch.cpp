@@ -35,6 +35,37 @@ using Mask4 = long long __attribute__((vector_size(32)));
 // Per-lane states of the iteration.
 enum class Lane : std::uint8_t { kIdle, kIterating, kDone, kFailed };
 
+// C_p' = (I - KH) C_p + K B P_p for each lane's part of the common error (CommonObservationError::has_part;
+// a lane without one, or idle, computes from zeros), with update_lanes4's K, H and B, in the scalar order.
+__attribute__((target("avx2"), noinline)) void updated_part_lanes4(const ConsiderUpdateRequest* requests, int count,
+                                                                    const bool* active, int first_active,
+                                                                    const Double4 (&K)[3][2], const Double4 (&Hk)[2][3],
+                                                                    const Double4 (&B)[2][2], Double4 (&out)[3][2]) {
+  Double4 Cp[3][2], Pp[2][2];
+  for (int l = 0; l < 4; ++l) {
+    const CommonObservationError& common = *requests[l < count && active[l] ? l : first_active].common;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 2; ++j) Cp[i][j][l] = common.has_part ? common.part_cross_covariance(i, j) : 0.0;
+    }
+    for (int i = 0; i < 2; ++i) {
+      for (int j = 0; j < 2; ++j) Pp[i][j][l] = common.has_part ? common.part_covariance_px2(i, j) : 0.0;
+    }
+  }
+  Double4 BPp[2][2], HCp[2][2];
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      BPp[i][j] = B[i][0] * Pp[0][j] + B[i][1] * Pp[1][j];
+      HCp[i][j] = Hk[i][0] * Cp[0][j] + Hk[i][1] * Cp[1][j] + Hk[i][2] * Cp[2][j];
+    }
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      const Double4 part_kept = Cp[i][j] - (K[i][0] * HCp[0][j] + K[i][1] * HCp[1][j]);
+      out[i][j] = part_kept + (K[i][0] * BPp[0][j] + K[i][1] * BPp[1][j]);
+    }
+  }
+}
+
 // requests[l] for l < count passed the input checks (active[l]); the others are idle lanes that repeat
 // an active lane's inputs. Writes statuses and, for each updated lane, the primitive and its common error.
 __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* requests, int count,
@@ -236,6 +267,12 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
       cross[i][j] = kept + (K[i][0] * BP[0][j] + K[i][1] * BP[1][j]);
     }
   }
+  // The part of the common error kept apart, when any lane has one (in its own function, so that the
+  // update's own code compiles as it did without it).
+  Double4 part_cross[3][2];
+  bool has_part = false;
+  for (int l = 0; l < count; ++l) has_part = has_part || (active[l] && requests[l].common->has_part);
+  if (has_part) updated_part_lanes4(requests, count, active, first_active, K, Hk, B, part_cross);
   for (int l = 0; l < count; ++l) {
     if (lane[l] != Lane::kDone) continue;
     const ConsiderUpdateRequest& q = requests[l];
@@ -246,6 +283,13 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
       X_new(i) = X[i][l];
       for (int j = 0; j < 3; ++j) Sigma_new(i, j) = Sn[i][j][l];
       for (int j = 0; j < 2; ++j) cross_new(i, j) = cross[i][j][l];
+    }
+    const bool lane_part = has_part && q.common->has_part;
+    Eigen::Matrix<double, 3, 2> part_cross_new;
+    if (lane_part) {
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 2; ++j) part_cross_new(i, j) = part_cross[i][j][l];
+      }
     }
     if (!update_checks::short_form_trusted(Sigma_new, q.primitive->Sigma_world)) {
       // The short form cancelled: the scalar update, which takes the Joseph form, from the same inputs. Its
@@ -258,7 +302,7 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
       stats->rejected_inputs += redo.rejected_inputs;
       continue;
     }
-    if (!X_new.allFinite() || !cross_new.allFinite()) {
+    if (!X_new.allFinite() || !cross_new.allFinite() || (lane_part && !part_cross_new.allFinite())) {
       statuses[l] = Status::kNotSpd;
       ++stats->rejected_inputs;
       continue;
@@ -266,6 +310,7 @@ __attribute__((target("avx2"))) void update_lanes4(const ConsiderUpdateRequest* 
     q.primitive->X_world = X_new;
     q.primitive->Sigma_world = Sigma_new;
     q.common->cross_covariance = cross_new;
+    if (lane_part) q.common->part_cross_covariance = part_cross_new;
     ++q.primitive->observation_count;
     ++stats->accepted;
     statuses[l] = Status::kOk;

@@ -10,6 +10,19 @@ namespace vantage::sim {
 namespace {
 constexpr double kChi2Dof2Q95 = 5.991464547107979;
 
+// (d.e)^2 / d^T Sigma d: the part of e^T Sigma^-1 e along the unit direction d (1 dof).
+double one_dof_nees(const Eigen::Vector3d& d, const Eigen::Vector3d& e, const Eigen::Matrix3d& Sigma) {
+  return d.dot(e) * d.dot(e) / d.dot(Sigma * d);
+}
+
+// The bin of the view change between a primitive's consecutive correct matches (kLagBinNames).
+int lag_bin(double lag_deg) {
+  int bin = 0;
+  for (double edge : {1.0, 2.0, 4.0, 8.0, 16.0, 32.0}) bin += lag_deg >= edge ? 1 : 0;
+  return bin;
+}
+constexpr const char* kLagBinNames[] = {"0-1", "1-2", "2-4", "4-8", "8-16", "16-32", "32+"};
+
 // The angle between two unit vectors, in degrees.
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180.0 / M_PI;
@@ -93,6 +106,16 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   c.observations += 1;
   c.gated += gated ? 1 : 0;
   c.prior_nees += prior_nees;
+  // The prior NEES's 1-dof parts along the creating ray and along the true surface normal: the latter is
+  // the error the surface model carries (the seed truth's lateral pin does not reach it).
+  const Eigen::Vector3d seed_ray = (X_true - o.creating_view.position_world).normalized();
+  c.prior_along_ray += one_dof_nees(seed_ray, e, p.Sigma_world);
+  std::uint32_t triangle = 0;
+  if (std::isfinite(scene_.first_hit(o.creating_view.position_world, seed_ray, &triangle))) {
+    const Eigen::Vector3d true_normal = scene_.mesh().triangle_normal(triangle);
+    c.prior_along_normal += one_dof_nees(true_normal, e, p.Sigma_world);
+    c.with_normal += 1;
+  }
   Viewpoint spawn_other;
   if (p.observation_count == 0 && p.creating_view > 0 && ok(front_end_.view_pose(p.creating_view - 1, &spawn_other))) {
     const Eigen::Vector3d from_other = (spawn_other.position_world - X_true).normalized();
@@ -111,6 +134,15 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
   q.P_c += o.common_covariance_px2;
   q.R += A * o.R_px2 * A.transpose();
   q.angle_deg += view_change_deg;
+  // The error's correlation between this match and the primitive's previous correct one, by the view change.
+  if (q.matches > 1) {
+    Lag& lag = lags_[lag_bin(angle_deg(q.last_from_view, from_view))];
+    lag.pairs += 1;
+    lag.product += in_creating.dot(q.last_error);
+    lag.square += 0.5 * (in_creating.squaredNorm() + q.last_error.squaredNorm());
+  }
+  q.last_error = in_creating;
+  q.last_from_view = from_view;
 }
 
 void GateDiagnostics::print_bucket(std::FILE* out, const char* name, const Bucket& b) {
@@ -130,18 +162,33 @@ void GateDiagnostics::print(std::FILE* out) const {
     const ByCount& c = by_count_[i];
     const double n = std::max(1.0, c.observations);
     if (i < 5) {
-      std::fprintf(out, "gate diagnostics, correct matches of primitives with %d-%d updates: %.0f, gated %.3f, prior NEES %.2f\n",
-                   4 * i, 4 * i + 3, c.observations, c.gated / n, c.prior_nees / n);
+      std::fprintf(
+          out, "gate diagnostics, correct matches of primitives with %d-%d updates: %.0f, gated %.3f, prior NEES %.2f",
+          4 * i, 4 * i + 3, c.observations, c.gated / n, c.prior_nees / n);
     } else {
-      std::fprintf(out, "gate diagnostics, correct matches of primitives with %d+ updates: %.0f, gated %.3f, prior NEES %.2f\n",
-                   4 * i, c.observations, c.gated / n, c.prior_nees / n);
+      std::fprintf(
+          out, "gate diagnostics, correct matches of primitives with %d+ updates: %.0f, gated %.3f, prior NEES %.2f",
+          4 * i, c.observations, c.gated / n, c.prior_nees / n);
     }
+    std::fprintf(out, " (3), along the creating ray %.2f (1), along the true normal %.2f (1)\n", c.prior_along_ray / n,
+                 c.prior_along_normal / std::max(1.0, c.with_normal));
   }
   for (int i = 0; i < 6; ++i) {
     const ByCount& c = by_spawn_baseline_[i];
     const double n = std::max(1.0, c.observations);
     std::fprintf(out, "gate diagnostics, first re-observations (correct), spawn baseline %d%s deg: %.0f, gated %.3f, prior NEES %.2f\n",
                  2 * i, i < 5 ? "-" : "+", c.observations, c.gated / n, c.prior_nees / n);
+  }
+  // Consecutive correct matches of a primitive (creating image, px^2 over both axes): a white error gives a
+  // correlation near 0, one common to every match near 1 at every view change.
+  for (int i = 0; i < kLagBins; ++i) {
+    const Lag& lag = lags_[i];
+    const double n = std::max(1.0, lag.pairs);
+    std::fprintf(out,
+                 "gate diagnostics, consecutive correct matches %s deg apart: %.0f pairs, mean e_k . e_k-1 %.4f, "
+                 "mean |e|^2 %.4f, correlation %.3f\n",
+                 kLagBinNames[i], lag.pairs, lag.product / n, lag.square / n,
+                 lag.product / std::max(1e-12, lag.square));
   }
   // Per primitive (>= 5 correct matches): the mean error's spread (common to its matches) and the spread
   // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1); all

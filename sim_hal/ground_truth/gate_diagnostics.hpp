@@ -10,7 +10,10 @@
 // innovation into the prior's part (truth projection vs prediction against H Sigma H^T) and the match's
 // part (observation vs truth projection against B P_c B^T + R), and per primitive it splits the match
 // errors, taken back into the creating image by B^-1, into the part common to all of a primitive's
-// matches and the part that varies (what P_c and R model).
+// matches and the part that varies (what P_c and R model). By the updates a primitive had, it splits the
+// prior NEES along the creating ray and along the true surface normal, and it measures how a match's
+// error correlates with the primitive's previous one by the view change between them (core/frontend/
+// EXPERIMENTS.md, "Session 38": the errors of matches from nearby views are not independent).
 #include <cstdio>
 #include <map>
 
@@ -56,11 +59,19 @@ class GateDiagnostics final : public TrackObserver {
     Eigen::Matrix2d sum_sq = Eigen::Matrix2d::Zero();
     Eigen::Matrix2d P_c = Eigen::Matrix2d::Zero();
     Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
-    double angle_deg = 0;  // summed view change from the creating view
+    double angle_deg = 0;                                      // summed view change from the creating view
+    Eigen::Vector2d last_error = Eigen::Vector2d::Zero();      // the last correct match's, creating image
+    Eigen::Vector3d last_from_view = Eigen::Vector3d::Zero();  // its unit direction from the point to the camera
   };
   struct ByCount {
     double observations = 0, gated = 0, prior_nees = 0;
+    double prior_along_ray = 0, prior_along_normal = 0, with_normal = 0;  // 1-dof parts (with_normal: hits)
   };
+  // Consecutive correct matches by their view change: pairs, sum of e_k . e_k-1, sum of the mean |e|^2.
+  struct Lag {
+    double pairs = 0, product = 0, square = 0;
+  };
+  static constexpr int kLagBins = 7;  // 0-1, 1-2, 2-4, 4-8, 8-16, 16-32, 32+ degrees
   static void print_bucket(std::FILE* out, const char* name, const Bucket& b);
 
   const sim::EmbreeScene& scene_;
@@ -68,8 +79,9 @@ class GateDiagnostics final : public TrackObserver {
   PinholeIntrinsics intrinsics_;
   std::int32_t stride_px_;
   Bucket gated_, accepted_;
-  ByCount by_count_[6];                       // correct matches, by observation_count / 4
-  ByCount by_spawn_baseline_[6];              // first re-observations, by spawn baseline angle / 2 deg
+  ByCount by_count_[6];           // correct matches, by observation_count / 4
+  ByCount by_spawn_baseline_[6];  // first re-observations, by spawn baseline angle / 2 deg
+  Lag lags_[kLagBins];
   std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
 };
 

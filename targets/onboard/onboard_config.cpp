@@ -192,7 +192,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
                        "depth_min_m", "depth_max_m", "inverse_warp_masked", "inverse_warp_ncc_min",
                        "spawn_normal_fit_along_rays", "epipolar_guard_fraction", "max_match_sigma_rad",
                        "subpixel_iterations", "require_converged_fit", "match_sigma_floor_rad",
-                       "match_floor_tilt_power"});
+                       "match_floor_tilt_power", "view_correlated_error_scale", "view_correlation_deg"});
     MissionSettings& s = c.mission;
     mis.integer("cells_per_side", &s.grid.cells_per_side, 1, 4096);
     if (s.grid.cells_per_side != kOnboardGridSide) {
@@ -219,6 +219,8 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.boolean("require_converged_fit", &s.require_converged_fit);
     mis.number("match_sigma_floor_rad", &s.match_sigma_floor_rad, 1e-6, 9e-3);  // vantage-sim --match-floor-rad's range
     mis.number("match_floor_tilt_power", &s.match_floor_tilt_power, 0, kMaxMatchFloorTiltPower);
+    mis.number("view_correlated_error_scale", &s.view_correlated_error_scale, 0, 100);  // vantage-sim's ranges
+    mis.number("view_correlation_deg", &s.view_correlation_deg, 0.1, 180);
     if (s.depth_min_m > 0.0 && s.depth_max_m > 0.0 && s.depth_max_m <= s.depth_min_m) {
       throw Failure{"mission.depth_max_m", "must be larger than depth_min_m"};
     }

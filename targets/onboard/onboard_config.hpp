@@ -67,6 +67,10 @@ struct MissionSettings {
   double match_sigma_floor_rad = FrontEndConfig{}.match_sigma_floor_rad;
   // FrontEndConfig::match_floor_tilt_power: a tracked match's floor / cos(tilt)^k (0: off).
   double match_floor_tilt_power = FrontEndConfig{}.match_floor_tilt_power;
+  // FrontEndConfig::view_correlated_error_scale (0: off) and view_correlation_deg: a match error shared by a
+  // primitive's matches from nearby views, as a multiple of its patch noise, decorrelating over that angle.
+  double view_correlated_error_scale = FrontEndConfig{}.view_correlated_error_scale;
+  double view_correlation_deg = FrontEndConfig{}.view_correlation_deg;
 };
 
 struct OnboardConfig {

@@ -132,6 +132,15 @@ int run_cli(int argc, const char* const* argv) {
                  "matches, more consistent primitives)")
       ->check(CLI::Range(0.0, 9e-3))
       ->capture_default_str();
+  app.add_option("--view-correlated-error", options.view_correlated_error_scale,
+                 "image front end: a match error shared by a primitive's matches from nearby views, as this multiple "
+                 "of its patch noise's covariance (0, the default: off; 2: the missions' measured share)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  app.add_option("--view-correlation-deg", options.view_correlation_deg,
+                 "image front end: the angle over which that error decorrelates, exp(-angle / this) (degrees)")
+      ->check(CLI::Range(0.1, 180.0))
+      ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
                "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
                "coverage, a 640x480 plane's NEES below its band; default off)");

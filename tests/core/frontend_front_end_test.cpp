@@ -1424,3 +1424,75 @@ TEST_CASE("configure refuses a negative or non-finite refit or spawn residual fl
   }
   CHECK(FrontEndConfig{}.normal_spawn_residual_floor == 1.0);  // the default since session 34
 }
+
+TEST_CASE(
+    "view_correlated_error_scale: a primitive's matches share a slowly varying error, so its covariance stays wider") {
+  Scene scene;
+  // The pair, then views stepping 4 degrees around the plane: consecutive matches share most of s.
+  std::vector<Viewpoint> later;
+  for (int j = 1; j <= 4; ++j) {
+    const double az = (2.9 + 4.0 * j) * EIGEN_PI / 180.0;
+    later.push_back(vantage::test::looking_at_origin({40.0 * std::cos(az), 40.0 * std::sin(az), 1.0 * j}));
+  }
+  std::vector<std::vector<std::uint8_t>> images;
+  for (const Viewpoint& v : later) images.push_back(scene.render(v));
+  struct Outcome {
+    double mean_trace = 0.0;
+    std::size_t tracked = 0;
+  };
+  auto run = [&](const FrontEndConfig& config) {
+    initialize_on_plane(scene, first_view(), second_view(), config);
+    for (std::size_t j = 0; j < later.size(); ++j) (void)update_from(images[j], scene.k, later[j]);
+    Outcome out;
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      if (!g_pool.is_alive(i) || g_pool[i].observation_count < 3) continue;
+      out.mean_trace += g_pool[i].Sigma_world.trace();
+      ++out.tracked;
+    }
+    out.mean_trace /= static_cast<double>(std::max<std::size_t>(1, out.tracked));
+    return out;
+  };
+  FrontEndConfig off = plane_config();
+  REQUIRE(off.view_correlated_error_scale == 0.0);  // off by default
+  const Outcome base = run(off);
+  // Off, the correlation angle is never read.
+  FrontEndConfig off_other_angle = off;
+  off_other_angle.view_correlation_deg = 3.0;
+  const Outcome same = run(off_other_angle);
+  CHECK(same.tracked == base.tracked);
+  CHECK(same.mean_trace == base.mean_trace);
+  FrontEndConfig on = off;
+  on.view_correlated_error_scale = 2.0;
+  on.view_correlation_deg = 30.0;
+  const Outcome wider = run(on);
+  // Every match of the tracked primitives is there either way (the plane's matches pass the wider S too).
+  REQUIRE(base.tracked > 200u);
+  CHECK(wider.tracked >= 0.95 * base.tracked);
+  CHECK(wider.mean_trace > 1.2 * base.mean_trace);
+  // A short correlation angle lets the views average more of s away: between the two.
+  FrontEndConfig short_angle = on;
+  short_angle.view_correlation_deg = 2.0;
+  const Outcome between = run(short_angle);
+  CHECK(between.mean_trace < wider.mean_trace);
+  CHECK(between.mean_trace > base.mean_trace);
+}
+
+TEST_CASE(
+    "configure refuses a negative or non-finite view-correlated error scale and a correlation angle that is not "
+    "positive") {
+  FrontEndConfig bad;
+  bad.view_correlated_error_scale = -1.0;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.view_correlated_error_scale = std::numeric_limits<double>::infinity();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  FrontEndConfig angle;
+  angle.view_correlated_error_scale = 2.0;
+  angle.view_correlation_deg = 0.0;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), angle) == Status::kInvalidArgument);
+  angle.view_correlation_deg = std::numeric_limits<double>::quiet_NaN();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), angle) == Status::kNonFiniteInput);
+  CHECK_FALSE(g_front_end.configured());
+  FrontEndConfig good;
+  good.view_correlated_error_scale = 2.0;
+  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), good)));
+}

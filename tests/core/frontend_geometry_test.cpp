@@ -345,6 +345,125 @@ TEST_CASE("the consider update stays consistent under an error common to all obs
   CHECK(nees_plain > 3.5);  // averaging the common error away is over-confident
 }
 
+TEST_CASE("a view-correlated common error decayed between views, with the constant part kept apart, stays consistent") {
+  // Ten views along an arc 6 degrees apart; each observation is off by c (the same in every view), s_j
+  // (AR(1) over the views: Corr(s_j, s_k) = exp(-angle / L)) and its own e. The update carries c + s with
+  // c's part apart and the caller decays s's cross-covariance by rho between views, as the front end does
+  // (ImageFrontEnd::common_error_for_match). Taking s as constant or as independent is over-confident.
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Eigen::Vector3d truth(0.0, 0.5, -0.3);
+  const double step_deg = 6.0;
+  const double L_deg = 15.0;
+  const double rho = std::exp(-step_deg / L_deg);
+  std::vector<Viewpoint> views;
+  for (int j = 0; j < 10; ++j) {
+    const double az = (0.05 + step_deg * j) * EIGEN_PI / 180.0;
+    views.push_back(vantage::test::looking_at_origin({30.0 * std::cos(az), 30.0 * std::sin(az), 0.5 * j}));
+  }
+  const Eigen::Matrix2d P_c = 0.01 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d P_s = 0.04 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d R = 0.02 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix3d Sigma0 = Eigen::Vector3d(4.0, 0.05, 0.05).asDiagonal();
+  const Eigen::LLT<Eigen::Matrix3d> prior(Sigma0);
+  std::mt19937 rng(17);
+  std::normal_distribution<double> z(0.0, 1.0);
+  EkfConfig config;
+  config.gate_chi2 = 1e12;  // no gate: the data hold no outliers
+  config.R_px2 = R;
+  // 0: decayed (the model), 1: s taken as constant (rho 1), 2: s taken as independent (rho 0).
+  double nees[3] = {0.0, 0.0, 0.0};
+  const int trials = 1000;
+  for (int trial = 0; trial < trials; ++trial) {
+    const Eigen::Vector3d start = truth + prior.matrixL() * Eigen::Vector3d{z(rng), z(rng), z(rng)};
+    const Eigen::Vector2d c{0.1 * z(rng), 0.1 * z(rng)};
+    Eigen::Vector2d s{0.2 * z(rng), 0.2 * z(rng)};
+    std::vector<Eigen::Vector2d> observations;
+    for (const Viewpoint& view : views) {
+      Eigen::Vector2d uv;
+      REQUIRE(ok(project(truth, view, k, &uv)));
+      observations.push_back(uv + c + s + std::sqrt(R(0, 0)) * Eigen::Vector2d{z(rng), z(rng)});
+      s = rho * s + std::sqrt(1.0 - rho * rho) * 0.2 * Eigen::Vector2d{z(rng), z(rng)};
+    }
+    for (int model = 0; model < 3; ++model) {
+      const double model_rho = model == 0 ? rho : model == 1 ? 1.0 : 0.0;
+      Primitive p;
+      p.X_world = start;
+      p.Sigma_world = Sigma0;
+      Eigen::Matrix<double, 3, 2> C_c = Eigen::Matrix<double, 3, 2>::Zero();
+      Eigen::Matrix<double, 3, 2> C_s = Eigen::Matrix<double, 3, 2>::Zero();
+      for (std::size_t j = 0; j < views.size(); ++j) {
+        CommonObservationError common;
+        common.covariance_px2 = P_c + P_s;
+        common.cross_covariance = C_c + (j == 0 ? 0.0 : model_rho) * C_s;
+        common.has_part = true;
+        common.part_covariance_px2 = P_c;
+        common.part_cross_covariance = C_c;
+        REQUIRE(ok(iterated_consider_update(p, &common, observations[j], views[j], k, config, 5, nullptr)));
+        C_c = common.part_cross_covariance;
+        C_s = common.cross_covariance - common.part_cross_covariance;
+      }
+      const Eigen::Vector3d e = p.X_world - truth;
+      nees[model] += e.dot(p.Sigma_world.ldlt().solve(e)) / trials;
+    }
+  }
+  INFO("mean NEES: decayed " << nees[0] << ", s constant " << nees[1] << ", s independent " << nees[2]);
+  // 95% band of the mean of 1000 chi2(3) values: 3 +- 0.15.
+  CHECK(nees[0] > 2.85);
+  CHECK(nees[0] < 3.15);
+  // Both wrong models are over-confident: as independent s averages away; as constant the filter trusts the
+  // differences between views, in which a constant error would cancel and a varying one does not.
+  CHECK(nees[1] > 3.5);
+  CHECK(nees[2] > 3.5);
+}
+
+TEST_CASE("the part of the common error kept apart is carried by the same rule, and without has_part it is not touched") {
+  const PinholeIntrinsics k = vantage::test::small_intrinsics();
+  const Viewpoint view = vantage::test::looking_at_origin({30.0, 2.0, 1.0});
+  Primitive start;
+  start.X_world = Eigen::Vector3d(0.1, 0.2, -0.1);
+  start.Sigma_world = Eigen::Vector3d(2.0, 0.04, 0.03).asDiagonal();
+  EkfConfig config;
+  config.R_px2 = 0.02 * Eigen::Matrix2d::Identity();
+  CommonObservationError whole;
+  whole.covariance_px2 = Eigen::Vector2d(0.02, 0.01).asDiagonal();
+  whole.cross_covariance << 0.01, 0.0, 0.0, 0.002, 0.001, 0.0;
+  whole.B << 1.1, 0.1, -0.05, 0.9;
+  Eigen::Vector2d uv;
+  REQUIRE(ok(project(start.X_world, view, k, &uv)));
+  const Eigen::Vector2d o = uv + Eigen::Vector2d(0.3, -0.2);
+  // Without a part: the same bits as before the part existed, and the part is not touched.
+  Primitive without = start;
+  CommonObservationError none = whole;
+  REQUIRE(ok(iterated_consider_update(without, &none, o, view, k, config, 3, nullptr)));
+  CHECK(none.part_cross_covariance.isZero(0.0));
+  CommonObservationError ignored = whole;
+  ignored.part_cross_covariance.setConstant(7.0);  // neither read nor written without has_part
+  Primitive same = start;
+  REQUIRE(ok(iterated_consider_update(same, &ignored, o, view, k, config, 3, nullptr)));
+  CHECK((ignored.part_cross_covariance.array() == 7.0).all());
+  CHECK((same.X_world.array() == without.X_world.array()).all());
+  // The whole as its own part: the part follows the whole bit for bit, and the estimate is unchanged.
+  Primitive with = start;
+  CommonObservationError all = whole;
+  all.has_part = true;
+  all.part_covariance_px2 = whole.covariance_px2;
+  all.part_cross_covariance = whole.cross_covariance;
+  Status status = Status::kInvalidArgument;
+  REQUIRE_NO_ALLOCATION(status = iterated_consider_update(with, &all, o, view, k, config, 3, nullptr));
+  REQUIRE(ok(status));
+  CHECK((all.part_cross_covariance.array() == all.cross_covariance.array()).all());
+  CHECK((with.X_world.array() == without.X_world.array()).all());
+  CHECK((with.Sigma_world.array() == without.Sigma_world.array()).all());
+  CHECK((all.cross_covariance.array() == none.cross_covariance.array()).all());
+  // A non-finite part is refused like any other input, and nothing changes.
+  Primitive refused = start;
+  CommonObservationError bad = whole;
+  bad.has_part = true;
+  bad.part_cross_covariance(2, 1) = std::nan("");
+  CHECK(iterated_consider_update(refused, &bad, o, view, k, config, 3, nullptr) == Status::kNonFiniteInput);
+  CHECK((refused.X_world.array() == start.X_world.array()).all());
+}
+
 namespace {
 
 // A common error with a cross-covariance and a B that is not the identity: every consider term is used.

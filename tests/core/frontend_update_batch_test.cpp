@@ -49,6 +49,10 @@ Case make_case(int kind, const Viewpoint& view, const PinholeIntrinsics& k, std:
   c.common.cross_covariance = 0.3 * c.primitive.Sigma_world * c.at_prior.H.transpose() * c.config.R_px2.inverse() *
                               c.common.covariance_px2;
   if (kind == 2 || kind == 5) c.common.cross_covariance.setZero();  // a consistent C for these is not the point
+  // A part kept apart (FrontEndConfig::view_correlated_error_scale: the patch noise within c + s).
+  c.common.has_part = (kind % 2) == 0;  // lanes with and without a part in the same batch
+  c.common.part_covariance_px2 = 0.4 * c.common.covariance_px2;
+  c.common.part_cross_covariance = 0.6 * c.common.cross_covariance;
   const double off_px = kind == 1 ? 3.0 : kind == 3 ? 40.0 : 0.2;
   c.observation_px = c.at_prior.predicted_px + off_px * Eigen::Vector2d{z(rng), z(rng)};
   if (kind == 4) c.observation_px.x() = std::nan("");
@@ -102,6 +106,7 @@ TEST_CASE("the batched consider update gives the scalar update's statuses, estim
       const bool identical = same_bits(scalar[l].primitive.X_world, batch[l].primitive.X_world) &&
                              same_bits(scalar[l].primitive.Sigma_world, batch[l].primitive.Sigma_world) &&
                              same_bits(scalar[l].common.cross_covariance, batch[l].common.cross_covariance) &&
+                             same_bits(scalar[l].common.part_cross_covariance, batch[l].common.part_cross_covariance) &&
                              scalar[l].primitive.observation_count == batch[l].primitive.observation_count;
       same += identical ? 1 : 0;
     }

@@ -55,6 +55,8 @@ mission:
   require_converged_fit: true
   match_sigma_floor_rad: 1.4e-4
   match_floor_tilt_power: 1
+  view_correlated_error_scale: 2
+  view_correlation_deg: 20
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -82,6 +84,8 @@ mission:
   CHECK(c.mission.require_converged_fit);
   CHECK(c.mission.match_sigma_floor_rad == 1.4e-4);
   CHECK(c.mission.match_floor_tilt_power == 1.0);
+  CHECK(c.mission.view_correlated_error_scale == 2.0);
+  CHECK(c.mission.view_correlation_deg == 20.0);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
@@ -93,6 +97,8 @@ mission:
   CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);
   CHECK(defaults.mission.match_sigma_floor_rad == FrontEndConfig{}.match_sigma_floor_rad);
   CHECK(defaults.mission.match_floor_tilt_power == FrontEndConfig{}.match_floor_tilt_power);
+  CHECK(defaults.mission.view_correlated_error_scale == FrontEndConfig{}.view_correlated_error_scale);
+  CHECK(defaults.mission.view_correlation_deg == FrontEndConfig{}.view_correlation_deg);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -130,6 +136,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.match_sigma_floor_rad: 0 is outside [1e-06, 0.009]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  match_floor_tilt_power: 5\n") ==
         "onboard.yaml: mission.match_floor_tilt_power: 5 is outside [0, 4]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  view_correlation_deg: 0\n") ==
+        "onboard.yaml: mission.view_correlation_deg: 0 is outside [0.1, 180]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==

@@ -828,9 +828,10 @@ enum class Matcher {
   kFeatureTruthDefault,
   kPreviousDefault,
   kFeatureTruthDefaultTiltFloor,
-  kFeatureTruthDefaultInverseTiltFloor
+  kFeatureTruthDefaultInverseTiltFloor,
+  kFeatureTruthDefaultViewCorrelated
 };
-constexpr int kMatchers = 19;
+constexpr int kMatchers = 20;
 constexpr double kPreviousFloorRad = 1.7e-4;      // the match floor until session 34
 constexpr double kTiltFloorRad = 1.1e-4;          // grown as 1 / cos(tilt)
 constexpr double kInverseTiltFloorRad = 1.25e-4;  // the same with the inverse warp (session 36)
@@ -839,6 +840,7 @@ constexpr double kLowerFloorRad = 1.4e-4;
 constexpr double kLimitWithLowerFloorRad = 5e-4;       // 0.29 px at 640x480
 constexpr double kMatchSigmaLimitRad = 4.3e-4;         // 0.25 px at 640x480, 0.125 px at 320x240
 constexpr double kCandidateMatchSigmaLimitRad = 6e-4;  // 0.35 px at 640x480
+constexpr double kViewCorrelatedErrorScale = 2.0;      // the missions' measured share (session 38)
 
 enum class Base : std::uint8_t { kToday, kBeforeSession34 };
 // What a configuration changes from its base; a zero keeps the base's value.
@@ -852,42 +854,46 @@ struct MatcherSettings {
   bool converged_fits;           // 6 subpixel steps and FrontEndConfig::require_converged_fit
   double match_floor_rad;        // FrontEndConfig::match_sigma_floor_rad
   double floor_tilt_power;       // FrontEndConfig::match_floor_tilt_power
+  double view_correlated_error;  // FrontEndConfig::view_correlated_error_scale (at view_correlation_deg 30)
   const char* label;             // appended to the scene's name
 };
 constexpr Base kToday = Base::kToday;
 constexpr Base kBefore = Base::kBeforeSession34;
 // Rows: matcher, base, against_patch, inverse_warp_masked, inverse_warp_ncc_min, match_sigma_limit_rad,
-// converged_fits, match_floor_rad, floor_tilt_power, label.
+// converged_fits, match_floor_rad, floor_tilt_power, view_correlated_error, label.
 constexpr MatcherSettings kMatcherSettings[kMatchers] = {
-    {Matcher::kDefault, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, ""},
-    {Matcher::kInverseWarp, kBefore, false, true, 0.0f, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
-    {Matcher::kTailOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, " (tail oracle)"},
-    {Matcher::kNormalOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, " (normal oracle)"},
-    {Matcher::kMatchSigmaLimit, kBefore, false, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0,
+    {Matcher::kDefault, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, ""},
+    {Matcher::kInverseWarp, kBefore, false, true, 0.0f, 0.0, false, 0.0, 0.0, 0.0, " (the default before session 34)"},
+    {Matcher::kTailOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, " (tail oracle)"},
+    {Matcher::kNormalOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, " (normal oracle)"},
+    {Matcher::kMatchSigmaLimit, kBefore, false, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0, 0.0,
      " (match sigma limit)"},
-    {Matcher::kFeatureTruth, kBefore, true, false, 0.0f, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
-    {Matcher::kFeatureTruthLimited, kBefore, true, false, 0.0f, kCandidateMatchSigmaLimitRad, false, 0.0, 0.0,
+    {Matcher::kFeatureTruth, kBefore, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, " (the default before session 34)"},
+    {Matcher::kFeatureTruthLimited, kBefore, true, false, 0.0f, kCandidateMatchSigmaLimitRad, false, 0.0, 0.0, 0.0,
      " (match sigma limit 6e-4)"},
-    {Matcher::kConvergedFit, kBefore, false, false, 0.0f, 0.0, true, 0.0, 0.0, " (converged fits)"},
-    {Matcher::kTiltFloor, kBefore, false, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0,
+    {Matcher::kConvergedFit, kBefore, false, false, 0.0f, 0.0, true, 0.0, 0.0, 0.0, " (converged fits)"},
+    {Matcher::kTiltFloor, kBefore, false, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0, 0.0,
      " (converged fits, tilted floor)"},
-    {Matcher::kFeatureTruthTiltFloor, kBefore, true, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0,
+    {Matcher::kFeatureTruthTiltFloor, kBefore, true, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0, 0.0,
      " (converged fits, tilted floor)"},
-    {Matcher::kFeatureTruthSigmaLimit, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0,
+    {Matcher::kFeatureTruthSigmaLimit, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0, 0.0,
      " (match sigma limit)"},
-    {Matcher::kFeatureTruthConvergedFit, kBefore, true, false, 0.0f, 0.0, true, 0.0, 0.0, " (converged fits)"},
-    {Matcher::kFeatureTruthConvergedFloor, kBefore, true, false, 0.0f, 0.0, true, kLowerFloorRad, 0.0,
+    {Matcher::kFeatureTruthConvergedFit, kBefore, true, false, 0.0f, 0.0, true, 0.0, 0.0, 0.0, " (converged fits)"},
+    {Matcher::kFeatureTruthConvergedFloor, kBefore, true, false, 0.0f, 0.0, true, kLowerFloorRad, 0.0, 0.0,
      " (converged fits, floor 1.4e-4)"},
     {Matcher::kFeatureTruthLimitFloor, kBefore, true, false, 0.0f, kLimitWithLowerFloorRad, false, kLowerFloorRad, 0.0,
-     " (match sigma limit 5e-4, floor 1.4e-4)"},
+     0.0, " (match sigma limit 5e-4, floor 1.4e-4)"},
     {Matcher::kFeatureTruthSigmaLimitFloor, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, kLowerFloorRad, 0.0,
-     " (match sigma limit, floor 1.4e-4)"},
-    {Matcher::kFeatureTruthDefault, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0, ""},
-    {Matcher::kPreviousDefault, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, " (the default before session 34)"},
-    {Matcher::kFeatureTruthDefaultTiltFloor, kToday, true, false, 0.0f, 0.0, false, kTiltFloorRad, 1.0,
+     0.0, " (match sigma limit, floor 1.4e-4)"},
+    {Matcher::kFeatureTruthDefault, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, ""},
+    {Matcher::kPreviousDefault, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0,
+     " (the default before session 34)"},
+    {Matcher::kFeatureTruthDefaultTiltFloor, kToday, true, false, 0.0f, 0.0, false, kTiltFloorRad, 1.0, 0.0,
      " (tilted floor)"},
     {Matcher::kFeatureTruthDefaultInverseTiltFloor, kToday, true, true, kInverseWarpNccMin, 0.0, false,
-     kInverseTiltFloorRad, 1.0, " (inverse warp with NCC 0.95, tilted floor 1.25e-4)"},
+     kInverseTiltFloorRad, 1.0, 0.0, " (inverse warp with NCC 0.95, tilted floor 1.25e-4)"},
+    {Matcher::kFeatureTruthDefaultViewCorrelated, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0,
+     kViewCorrelatedErrorScale, " (view-correlated error 2, 30 deg)"},
 };
 constexpr bool rows_in_order() {
   for (int i = 0; i < kMatchers; ++i) {
@@ -920,6 +926,7 @@ FrontEndConfig front_end_config(Matcher matcher) {
   }
   if (s.match_floor_rad > 0.0) config.match_sigma_floor_rad = s.match_floor_rad;
   if (s.floor_tilt_power > 0.0) config.match_floor_tilt_power = s.floor_tilt_power;
+  if (s.view_correlated_error > 0.0) config.view_correlated_error_scale = s.view_correlated_error;
   return config;
 }
 
@@ -1465,7 +1472,8 @@ bool in_band(const Figures& f) { return f.mean_nees >= f.band_low && f.mean_nees
 // 0.350, converged fits 0.346 / 0.410, converged fits with the floor at 1.4e-4 0.318 / 0.457, tilted floor
 // 0.271 / 0.547; the floor at 1.4e-4 with the limit at 5e-4 0.303 / 0.426, with it at 4.3e-4 0.289 / 0.386
 // (session 33); today's default 0.273 / 0.416 (session 34), with the tilted floor 0.181 / 0.554 (session 35),
-// with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4 0.168 / 0.401 (session 36).
+// with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4 0.168 / 0.401 (session 36), with the
+// view-correlated error (2, 30 degrees) 0.320 / 0.266 (session 38).
 // One row's distance from consistency: |ln(mean NEES / 3)|.
 double distance_from_consistency(const Figures& f) { return std::abs(std::log(f.mean_nees / 3.0)); }
 double tracked_distance(Matcher matcher, bool against_patch) {
@@ -1486,19 +1494,20 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
     Matcher matcher;
     int against_patch;  // +1 closer than the default, -1 farther, 0 not checked (within a few hundredths)
   };
-  const Candidate candidates[] = {{"limit 6e-4", Matcher::kFeatureTruthLimited, 1},
-                                  {"limit 4.3e-4", Matcher::kFeatureTruthSigmaLimit, 1},
-                                  {"converged fits", Matcher::kFeatureTruthConvergedFit, 1},
-                                  {"converged fits, floor 1.4e-4", Matcher::kFeatureTruthConvergedFloor, 0},
-                                  {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1},
-                                  {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
-                                  {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
-                                  {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)",
-                                   Matcher::kFeatureTruthDefault, 1},
-                                  {"today's default with the tilted floor",
-                                   Matcher::kFeatureTruthDefaultTiltFloor, -1},
-                                  {"today's default with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4",
-                                   Matcher::kFeatureTruthDefaultInverseTiltFloor, 1}};
+  const Candidate candidates[] = {
+      {"limit 6e-4", Matcher::kFeatureTruthLimited, 1},
+      {"limit 4.3e-4", Matcher::kFeatureTruthSigmaLimit, 1},
+      {"converged fits", Matcher::kFeatureTruthConvergedFit, 1},
+      {"converged fits, floor 1.4e-4", Matcher::kFeatureTruthConvergedFloor, 0},
+      {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1},
+      {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
+      {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
+      {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)", Matcher::kFeatureTruthDefault, 1},
+      {"today's default with the tilted floor", Matcher::kFeatureTruthDefaultTiltFloor, -1},
+      {"today's default with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4",
+       Matcher::kFeatureTruthDefaultInverseTiltFloor, 1},
+      {"today's default with the view-correlated error (2, 30 degrees)", Matcher::kFeatureTruthDefaultViewCorrelated,
+       1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
       for (bool bunny_scene : {false, true}) {
@@ -1607,6 +1616,31 @@ TEST_CASE("the inverse warp with a tilted floor at 1.25e-4 moves every row towar
         tracked_distance(Matcher::kFeatureTruthDefault, false));
   CHECK(tracked_distance(Matcher::kFeatureTruthDefaultInverseTiltFloor, true) <
         tracked_distance(Matcher::kFeatureTruthDefault, true));
+}
+
+// The view-correlated match error (FrontEndConfig::view_correlated_error_scale 2, view_correlation_deg 30) on
+// today's default (EXPERIMENTS.md, "Session 38"): a primitive's matches from nearby views share an error that
+// decorrelates with the view change. It widens every covariance alike, so the bunny's tracked rows come down
+// toward 3 while the planes', already near or below 3, fall below their bands: the model does not tell the
+// two scenes apart. Its gain is in the missions (EXPERIMENTS.md). This case records the direction.
+TEST_CASE("the view-correlated error brings the bunny's tracked rows toward 3 and takes the planes' below them",
+          "[.][feature-truth]") {
+  for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
+    for (bool bunny_scene : {false, true}) {
+      const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthDefault);
+      const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthDefaultViewCorrelated);
+      INFO(scene_label(bunny_scene, resolution)
+           << ": tracked NEES " << before.tracked.mean_nees << " -> " << after.tracked.mean_nees
+           << ", tracked RMS surface error " << before.tracked.rms_error << " -> " << after.tracked.rms_error);
+      REQUIRE(after.tracked.primitives > 150u);
+      CHECK(after.tracked.mean_nees < before.tracked.mean_nees);
+      if (bunny_scene) {
+        CHECK(distance_from_consistency(after.tracked) < distance_from_consistency(before.tracked));
+      } else {
+        CHECK(after.tracked.mean_nees < after.tracked.band_low);
+      }
+    }
+  }
 }
 
 // Session 31's tilted floor (kTiltFloor: converged fits, the floor at kTiltFloorRad grown as 1 / cos(tilt),

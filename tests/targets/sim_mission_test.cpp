@@ -112,6 +112,9 @@ TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected")
   // A tilt power outside [0, 4] is refused before the scene loads.
   CHECK(run({"--match-floor-tilt-power", "5", "--quiet"}) == 1);
   CHECK(run({"--match-floor-tilt-power", "-1", "--quiet"}) == 1);
+  // So are a negative view-correlated error and a correlation angle that is not positive.
+  CHECK(run({"--view-correlated-error", "-1", "--quiet"}) == 1);
+  CHECK(run({"--view-correlation-deg", "0", "--quiet"}) == 1);
 }
 
 TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing in units") {
