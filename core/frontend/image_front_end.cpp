@@ -676,7 +676,7 @@ void ImageFrontEnd::after_update(const PendingUpdate& pending, Status updated, P
   Primitive& p = pool[i];
   if (ok(updated) && pending.template_noise) {
     TemplateNoise& noise = template_noise_[i];
-    if (config_.view_correlated_error_scale > 0.0) {
+    if (pending.common.has_part) {
       // The update carried the sum c + s, and c's part apart (common_error_for_match).
       noise.cross_covariance = pending.common.part_cross_covariance.cast<float>();
       noise.correlated_cross_covariance =
@@ -1086,6 +1086,12 @@ void ImageFrontEnd::fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t c
   set_normal_tilt_variance(i, tilt_variance, source);
 }
 
+bool ImageFrontEnd::spawn_patch_noise_px2(const Eigen::Matrix2d& fit_covariance_px2, Eigen::Matrix2d* P_c) const {
+  if (!config_.model_template_noise || !config_.adaptive_R || !fit_covariance_px2.allFinite()) return false;
+  *P_c = 0.5 * fit_covariance_px2;
+  return true;
+}
+
 void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
                                             std::uint32_t other_index, const Eigen::Matrix2d& R_other_px2,
                                             const Eigen::Matrix2d& fit_covariance_px2) {
@@ -1097,14 +1103,14 @@ void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p
   noise.correlated_view = other_index;
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H;
-  if (!config_.model_template_noise || !config_.adaptive_R || !fit_covariance_px2.allFinite() ||
-      !ok(project_with_jacobian(p.X_world, other_view, intrinsics_, &unused, &H))) {
-    return;
-  }
   // The template's half of the first match's fit covariance; the triangulated error carries it through
   // the other image's observation: X_hat - X = Sigma H^T R^-1 (c + e) + ..., so C = Sigma H^T R^-1 P_c
   // (the unwarped epipolar match: B = I).
-  const Eigen::Matrix2d P_c = 0.5 * fit_covariance_px2;
+  Eigen::Matrix2d P_c;
+  if (!spawn_patch_noise_px2(fit_covariance_px2, &P_c) ||
+      !ok(project_with_jacobian(p.X_world, other_view, intrinsics_, &unused, &H))) {
+    return;
+  }
   noise.covariance_px2 = P_c.cast<float>();
   const Eigen::Matrix<double, 3, 2> gain_px = p.Sigma_world * H.transpose() * R_other_px2.inverse();
   noise.cross_covariance = (gain_px * P_c).cast<float>();
@@ -1298,9 +1304,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       observation.uv_b_px = matched_px;
       observation.R_b_px2 = measurement_R(fit_covariance);
       // The view-correlated error's share of this match (FrontEndConfig::view_correlated_error_scale x P_c).
-      if (config_.model_template_noise && config_.adaptive_R && fit_covariance.allFinite()) {
-        observation.R_b_px2 += config_.view_correlated_error_scale * 0.5 * fit_covariance;
-      }
+      Eigen::Matrix2d P_c;
+      if (spawn_patch_noise_px2(fit_covariance, &P_c)) observation.R_b_px2 += config_.view_correlated_error_scale * P_c;
       bool triangulated = ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world));
       if (triangulated && config_.model_normal_uncertainty && config_.model_spawn_normal_uncertainty && config_.adaptive_R) {
         // Again with the unknown normal's share of the match error (spawn_warp_covariance, at X).

@@ -612,6 +612,9 @@ class ImageFrontEnd final : public MeasurementSource {
   // source says which fit it is (kSpawnFit or kRefit).
   void fit_normal(PrimitiveIndex i, std::int32_t cx, std::int32_t cy, double spacing, double max_sigma,
                   const Eigen::Vector3d& camera_world, bool along_rays, NormalSource source, PrimitivePoolView& pool);
+  // P_c of a new primitive whose two-view match has fit covariance fit_covariance_px2: the template's half
+  // of it. False when the patch noise is not modelled (FrontEndConfig::model_template_noise, adaptive_R).
+  bool spawn_patch_noise_px2(const Eigen::Matrix2d& fit_covariance_px2, Eigen::Matrix2d* P_c) const;
   // The template noise of a new primitive i triangulated from its seed and a match in other_view with
   // covariance R_other_px2 (of which the fit's fit_covariance_px2).
   void remember_template_noise(PrimitiveIndex i, const Primitive& p, const Viewpoint& other_view,
