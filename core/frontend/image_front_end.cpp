@@ -177,7 +177,8 @@ Status FrontEndConfig::validate() const {
                            facing_normal_tilt_variance, photometric_normal_min_tilt_variance,
                            direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
                            normal_refit_residual_floor, normal_spawn_residual_floor, max_match_sigma_rad,
-                           view_correlated_error_scale, view_correlation_deg};
+                           view_correlated_error_scale, view_correlation_deg, deformation_error_scale,
+                           deformation_error_power};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -215,6 +216,10 @@ Status FrontEndConfig::validate() const {
   }
   if (!(max_match_sigma_rad >= 0.0 && max_match_sigma_rad < 0.01)) return Status::kInvalidArgument;
   if (!(view_correlated_error_scale >= 0.0) || !finite_positive(view_correlation_deg)) return Status::kInvalidArgument;
+  if (!(deformation_error_scale >= 0.0) ||
+      !(deformation_error_power > 0.0 && deformation_error_power <= kMaxDeformationErrorPower)) {
+    return Status::kInvalidArgument;
+  }
   if (!(match_floor_tilt_power >= 0.0 && match_floor_tilt_power <= kMaxMatchFloorTiltPower)) {
     return Status::kInvalidArgument;
   }
@@ -599,8 +604,10 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     // Only a primitive whose patch noise was recorded at its creation splits the fit covariance.
     const bool template_noise = config_.model_template_noise && config_.adaptive_R && i < kFrontEndMaxPrimitives &&
                                 fit_covariance.allFinite() && template_noise_[i].covariance_px2.trace() > 0.0f;
+    Eigen::Matrix2d deformation = Eigen::Matrix2d::Zero();
     if (template_noise) {
-      common_error_for_match(i, pool[i], view, &common);
+      deformation = deformation_error_px2(matched.B);
+      common_error_for_match(i, pool[i], view, deformation, &common);
       common.B = matched.B;
       ekf.R_px2 = measurement_R(0.5 * fit_covariance) + warp_covariance;
     } else {
@@ -611,7 +618,7 @@ void ImageFrontEnd::track(const GrayImageView& image, const Viewpoint& view, Pri
     }
     // Not used, and not held against the primitive either: its normal, not its point, is in doubt (a
     // rejection would erase an unconfirmed new primitive and count toward track loss).
-    if (match_too_uncertain(ekf.R_px2, common)) {
+    if (match_too_uncertain(ekf.R_px2, common, deformation)) {
       ++report.failed_matches;
       ++stats_.track_failures.too_uncertain;
       continue;
@@ -682,6 +689,8 @@ void ImageFrontEnd::after_update(const PendingUpdate& pending, Status updated, P
       noise.correlated_cross_covariance =
           (pending.common.cross_covariance - pending.common.part_cross_covariance).cast<float>();
       noise.correlated_view = next_view_index_;
+      noise.correlated_trace =
+          static_cast<float>((pending.common.covariance_px2 - pending.common.part_covariance_px2).trace());
     } else {
       noise.cross_covariance = pending.common.cross_covariance.cast<float>();
     }
@@ -932,9 +941,11 @@ void ImageFrontEnd::reject_observation(PrimitiveIndex i, std::size_t centre_cell
   if (pool.is_alive(i)) count_rejection(i, centre_cell, pool, report, beyond_search);
 }
 
-bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common) const {
+bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common,
+                                        const Eigen::Matrix2d& deformation_px2) const {
   if (!(max_match_variance_px2_ > 0.0)) return false;
-  const double variance_sum = R_px2.trace() + common.projected_px2().trace();
+  double variance_sum = R_px2.trace() + common.projected_px2().trace();
+  if (config_.deformation_error_scale > 0.0) variance_sum -= (common.B * deformation_px2 * common.B.transpose()).trace();
   // A NaN covariance is refused too: nothing can weigh it.
   return !(0.5 * variance_sum <= max_match_variance_px2_);
 }
@@ -1101,6 +1112,7 @@ void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p
   noise.covariance_px2.setZero();
   noise.correlated_cross_covariance.setZero();
   noise.correlated_view = other_index;
+  noise.correlated_trace = 0.0f;
   Eigen::Vector2d unused;
   Eigen::Matrix<double, 2, 3> H;
   // The template's half of the first match's fit covariance; the triangulated error carries it through
@@ -1116,15 +1128,18 @@ void ImageFrontEnd::remember_template_noise(PrimitiveIndex i, const Primitive& p
   noise.cross_covariance = (gain_px * P_c).cast<float>();
   // The view-correlated error s displaced that match too (R_other_px2 holds its covariance, see spawn).
   noise.correlated_cross_covariance = (gain_px * (config_.view_correlated_error_scale * P_c)).cast<float>();
+  noise.correlated_trace = static_cast<float>(config_.view_correlated_error_scale * P_c.trace());
 }
 
 void ImageFrontEnd::common_error_for_match(PrimitiveIndex i, const Primitive& p, const Viewpoint& view,
+                                           const Eigen::Matrix2d& deformation_px2,
                                            CommonObservationError* common) const {
   const TemplateNoise& noise = template_noise_[i];
   common->covariance_px2 = noise.covariance_px2.cast<double>();
   common->cross_covariance = noise.cross_covariance.cast<double>();
   const double scale = config_.view_correlated_error_scale;
-  if (!(scale > 0.0)) return;
+  const bool deformation = config_.deformation_error_scale > 0.0;
+  if (!(scale > 0.0) && !deformation) return;
   // c + s: covariance P_c (1 + scale), cross-covariance C_c + rho C_s with rho the correlation between s
   // here and s at its last update's view (a view no longer in the table is taken as uncorrelated).
   double rho = 0.0;
@@ -1139,7 +1154,23 @@ void ImageFrontEnd::common_error_for_match(PrimitiveIndex i, const Primitive& p,
   common->part_covariance_px2 = common->covariance_px2;
   common->part_cross_covariance = common->cross_covariance;
   common->covariance_px2 *= 1.0 + scale;
+  if (deformation) {
+    common->covariance_px2 += deformation_px2;
+    // s_k = rho (sd_k / sd_last) s_last + w: a varying variance scales the carried part by the ratio of the
+    // standard deviations (none to carry after a match whose s had no variance).
+    const double s_trace = scale * common->part_covariance_px2.trace() + deformation_px2.trace();
+    rho = noise.correlated_trace > 0.0f ? rho * std::sqrt(s_trace / noise.correlated_trace) : 0.0;
+  }
   common->cross_covariance += rho * noise.correlated_cross_covariance.cast<double>();
+}
+
+Eigen::Matrix2d ImageFrontEnd::deformation_error_px2(const Eigen::Matrix2d& B) const {
+  const double scale = config_.deformation_error_scale;
+  if (!(scale > 0.0)) return Eigen::Matrix2d::Zero();
+  // The ratio capped at 10 (about 84 degrees of foreshortening), where a nearly singular warp would make it
+  // unbounded.
+  const double ratio = warp_stretch_ratio(B, 10.0);
+  return scale * std::pow(ratio - 1.0, config_.deformation_error_power) * match_floor_px2_;
 }
 
 double ImageFrontEnd::normal_tilt_variance(PrimitiveIndex i) const {

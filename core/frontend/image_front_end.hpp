@@ -43,6 +43,8 @@ inline constexpr double kMaxEpipolarGuardFraction = 4.0;
 // FrontEndConfig::match_floor_tilt_power: at most this power, and the tilt's cosine taken as at least
 // kMatchFloorMinCos (78 degrees), so a grazing view's floor grows at most 0.2^-k times.
 inline constexpr double kMaxMatchFloorTiltPower = 4.0;
+// FrontEndConfig::deformation_error_power: at most this power (the singular values' ratio less one).
+inline constexpr double kMaxDeformationErrorPower = 8.0;
 inline constexpr double kMatchFloorMinCos = 0.2;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
@@ -196,6 +198,17 @@ struct FrontEndConfig {
   // too. Needs model_template_noise. 0: off (the default; the owner's table, core/frontend/README.md).
   double view_correlated_error_scale = 0.0;
   double view_correlation_deg = 30.0;
+  // The deformation error (EXPERIMENTS.md, "Session 39"): where the warp stretches the reference patch
+  // unevenly (an oblique surface seen from a new angle), the resampled template misses the texture's detail
+  // and a match is displaced by an error that nearby views share. It is the view-correlated error s above
+  // with covariance deformation_error_scale x (r - 1)^deformation_error_power x the match floor, r the
+  // ratio of the warp's singular values (1: no deformation; the scene's own scale, so a plane seen nearly
+  // head-on gets almost none and the oblique bunny most), correlated as above over view_correlation_deg.
+  // Its cross-covariance follows the AR(1) rule with a varying variance (scaled by the ratio of the
+  // standard deviations). It is the model's error, not the match's, so max_match_sigma_rad does not count
+  // it. Needs model_template_noise. 0: off (the default; the owner's table, core/frontend/README.md).
+  double deformation_error_scale = 0.0;
+  double deformation_error_power = 3.0;
   // A new primitive rests on one two-view match. The first image after its creation must confirm it:
   // when it is not predicted in view there (a wrong match behind the surface stays hidden by the depth
   // buffer for good), or its match fails or is gated, it is erased rather than kept with an estimate
@@ -574,8 +587,10 @@ class ImageFrontEnd final : public MeasurementSource {
   void count_track_failure(bool template_usable, MatchOutcome outcome);
   // Whether a found match is too uncertain to use (FrontEndConfig::max_match_sigma_rad): its modelled
   // covariance, R_px2 plus the reference patch's common error through B (zero when no patch noise was
-  // recorded), has a mean standard deviation above the limit (or is not a number).
-  bool match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common) const;
+  // recorded) less the deformation error in it (deformation_px2, the model's error), has a mean standard
+  // deviation above the limit (or is not a number).
+  bool match_too_uncertain(const Eigen::Matrix2d& R_px2, const CommonObservationError& common,
+                           const Eigen::Matrix2d& deformation_px2) const;
   // The inverse-warp match of a primitive whose warped template is masked (inverse_warp_masked): true with
   // *observed and *covariance_px2 set, and its normal replaced when the fit knows it better.
   // A maps this image's offsets into the creating image's (the template's warp at the prior normal).
@@ -621,9 +636,13 @@ class ImageFrontEnd final : public MeasurementSource {
                                std::uint32_t other_index, const Eigen::Matrix2d& R_other_px2,
                                const Eigen::Matrix2d& fit_covariance_px2);
   // Primitive i's common error for a match in `view` (view index next_view_index_): the patch noise and,
-  // with view_correlated_error_scale, the view-correlated error decayed since its last update.
+  // with view_correlated_error_scale or deformation_error_scale, the view-correlated error decayed since its
+  // last update (deformation_px2: this match's deformation error, deformation_error_px2).
   void common_error_for_match(PrimitiveIndex i, const Primitive& p, const Viewpoint& view,
-                              CommonObservationError* common) const;
+                              const Eigen::Matrix2d& deformation_px2, CommonObservationError* common) const;
+  // FrontEndConfig::deformation_error_scale's covariance for a match whose reference patch the warp B
+  // (reference patch -> this image) maps (px^2, in the reference patch's frame; zero when off).
+  Eigen::Matrix2d deformation_error_px2(const Eigen::Matrix2d& B) const;
   void set_normal_tilt_variance(PrimitiveIndex i, double variance, NormalSource source);
   // Seeds in uncovered cells of `reference`, matched along epipolar lines in `other`, become primitives.
   void spawn(const GrayImageView& reference, const Viewpoint& reference_view, std::uint32_t reference_index,
@@ -681,6 +700,9 @@ class ImageFrontEnd final : public MeasurementSource {
     Eigen::Matrix<float, 2, 2, Eigen::DontAlign> covariance_px2;
     Eigen::Matrix<float, 3, 2, Eigen::DontAlign> correlated_cross_covariance;
     std::uint32_t correlated_view;
+    // The trace of s's covariance at that update (px^2): a varying variance scales the carried
+    // cross-covariance by the ratio of standard deviations (deformation_error_scale).
+    float correlated_trace;
   };
   std::array<TemplateNoise, kFrontEndMaxPrimitives> template_noise_;
 

@@ -1,5 +1,6 @@
 #include "core/frontend/patch_warp.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -673,6 +674,17 @@ Eigen::Matrix2d warp_shift_covariance(const NccTemplate& tmpl, const Eigen::Matr
   TemplateGradientMoments moments;
   template_gradient_moments(tmpl, &moments);
   return warp_shift_covariance(moments, A_ref_per_target, dA, tilt_variance);
+}
+
+double warp_stretch_ratio(const Eigen::Matrix2d& B, double max_ratio) {
+  // The singular values from the Frobenius norm and the determinant: s1^2 + s2^2 = |B|^2, s1 s2 = |det B|.
+  const double f2 = B.squaredNorm();
+  const double det = std::abs(B.determinant());
+  const double spread = std::sqrt(std::max(0.0, f2 * f2 - 4.0 * det * det));
+  const double largest = std::sqrt(0.5 * (f2 + spread));
+  const double smallest = std::sqrt(std::max(0.0, 0.5 * (f2 - spread)));
+  const double ratio = largest / smallest;
+  return smallest * max_ratio > largest && std::isfinite(ratio) ? ratio : max_ratio;
 }
 
 }  // namespace vantage

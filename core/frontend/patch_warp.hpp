@@ -30,6 +30,11 @@ void warp_patch_template(const std::array<std::uint8_t, kPatchPixels>& patch, co
 // photometric normal's estimate.
 Eigen::Matrix<double, 3, 2> plane_basis(const Eigen::Vector3d& n);
 
+// How unevenly the 2x2 map B stretches a patch: the ratio of its larger to its smaller singular value (1 when
+// it stretches evenly, whatever its scale or rotation), at most max_ratio (so also for a singular or
+// non-finite map).
+double warp_stretch_ratio(const Eigen::Matrix2d& B, double max_ratio);
+
 // plane_affine and its tilt derivatives from the two views' projection Jacobians at X (as
 // project_with_jacobian gives them; the tracker has the target's from its prediction already):
 // A = J_ref J_target^-1 with J = H E for a basis E = [e1 e2] of the plane (A does not depend on which).

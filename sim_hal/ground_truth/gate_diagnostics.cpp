@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/frontend/patch_warp.hpp"
 #include "core/geometry/projection.hpp"
 
 namespace vantage::sim {
@@ -22,6 +23,13 @@ int lag_bin(double lag_deg) {
   return bin;
 }
 constexpr const char* kLagBinNames[] = {"0-1", "1-2", "2-4", "4-8", "8-16", "16-32", "32+"};
+// The bin of r - 1 (kDeformationBinNames).
+int deformation_bin(double r) {
+  int bin = 0;
+  for (double edge : {0.05, 0.1, 0.2, 0.4, 0.7, 1.0}) bin += r - 1.0 >= edge ? 1 : 0;
+  return bin;
+}
+constexpr const char* kDeformationBinNames[] = {"0-0.05", "0.05-0.1", "0.1-0.2", "0.2-0.4", "0.4-0.7", "0.7-1", "1+"};
 
 // The angle between two unit vectors, in degrees.
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -76,6 +84,8 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
     return;
   }
   const Eigen::Vector2d match_error = o.observed_px - uv_true;
+  ByDeformation& deformation = by_deformation_[deformation_bin(warp_stretch_ratio(o.B, 10.0))];
+  deformation.observations += 1;
   if (match_error.norm() > 2.0) {
     b.wrong += 1;
     return;
@@ -85,6 +95,10 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
     return;
   }
   b.correct += 1;
+  deformation.correct += 1;
+  deformation.error_sq += match_error.squaredNorm();
+  deformation.R += o.R_px2.trace();
+  deformation.common += (o.B * o.common_covariance_px2 * o.B.transpose()).trace();
   const Eigen::Vector3d e = p.X_world - X_true;
   const double prior_nees = e.dot(p.Sigma_world.ldlt().solve(e));
   const Eigen::Vector2d prior_error = uv_true - o.predicted_px;
@@ -189,6 +203,17 @@ void GateDiagnostics::print(std::FILE* out) const {
                  "mean |e|^2 %.4f, correlation %.3f\n",
                  kLagBinNames[i], lag.pairs, lag.product / n, lag.square / n,
                  lag.product / std::max(1e-12, lag.square));
+  }
+  // By how unevenly the warp stretches the reference patch (r, the ratio of its singular values): the
+  // correct matches' squared error against what the filter modelled (both axes, this image, px^2).
+  for (int i = 0; i < kDeformationBins; ++i) {
+    const ByDeformation& d = by_deformation_[i];
+    const double n = std::max(1.0, d.correct);
+    std::fprintf(out,
+                 "gate diagnostics, warp singular value ratio - 1 %s: %.0f observations with a truth, correct %.3f; "
+                 "of the correct: mean |e|^2 %.4f px^2, modelled R %.4f, common %.4f\n",
+                 kDeformationBinNames[i], d.observations, d.correct / std::max(1.0, d.observations), d.error_sq / n,
+                 d.R / n, d.common / n);
   }
   // Per primitive (>= 5 correct matches): the mean error's spread (common to its matches) and the spread
   // about it, in the creating image, against what the filter assumed (P_c and R taken back by B^-1); all

@@ -13,7 +13,9 @@
 // matches and the part that varies (what P_c and R model). By the updates a primitive had, it splits the
 // prior NEES along the creating ray and along the true surface normal, and it measures how a match's
 // error correlates with the primitive's previous one by the view change between them (core/frontend/
-// EXPERIMENTS.md, "Session 38": the errors of matches from nearby views are not independent).
+// EXPERIMENTS.md, "Session 38": the errors of matches from nearby views are not independent), and by how
+// unevenly the warp stretches the reference patch, the error of the matches against what R and the common
+// error model (FrontEndConfig::deformation_error_scale's calibration, "Session 39").
 #include <cstdio>
 #include <map>
 
@@ -72,6 +74,12 @@ class GateDiagnostics final : public TrackObserver {
     double pairs = 0, product = 0, square = 0;
   };
   static constexpr int kLagBins = 7;  // 0-1, 1-2, 2-4, 4-8, 8-16, 16-32, 32+ degrees
+  // Observations by the ratio r of the warp's singular values: how many, how many correct, and over the
+  // correct ones the squared error and the modelled R and common error in this image (traces, px^2).
+  struct ByDeformation {
+    double observations = 0, correct = 0, error_sq = 0, R = 0, common = 0;
+  };
+  static constexpr int kDeformationBins = 7;  // r - 1: 0-0.05, 0.05-0.1, 0.1-0.2, 0.2-0.4, 0.4-0.7, 0.7-1, 1+
   static void print_bucket(std::FILE* out, const char* name, const Bucket& b);
 
   const sim::EmbreeScene& scene_;
@@ -82,6 +90,7 @@ class GateDiagnostics final : public TrackObserver {
   ByCount by_count_[6];           // correct matches, by observation_count / 4
   ByCount by_spawn_baseline_[6];  // first re-observations, by spawn baseline angle / 2 deg
   Lag lags_[kLagBins];
+  ByDeformation by_deformation_[kDeformationBins];
   std::map<std::uint64_t, PerPrimitive> primitives_;  // by (index, creating view)
 };
 

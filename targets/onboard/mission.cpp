@@ -157,6 +157,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.match_floor_tilt_power = m.match_floor_tilt_power;
   fc.view_correlated_error_scale = m.view_correlated_error_scale;
   fc.view_correlation_deg = m.view_correlation_deg;
+  fc.deformation_error_scale = m.deformation_error_scale;
+  fc.deformation_error_power = m.deformation_error_power;
   if (const Status s = g_front_end.configure(intrinsics, fc); !ok(s)) {
     *summary = config.source + ": mission: the image front end rejects this camera or depth range (" + to_string(s) + ")";
     return kExitConfig;

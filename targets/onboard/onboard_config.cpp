@@ -192,7 +192,8 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
                        "depth_min_m", "depth_max_m", "inverse_warp_masked", "inverse_warp_ncc_min",
                        "spawn_normal_fit_along_rays", "epipolar_guard_fraction", "max_match_sigma_rad",
                        "subpixel_iterations", "require_converged_fit", "match_sigma_floor_rad",
-                       "match_floor_tilt_power", "view_correlated_error_scale", "view_correlation_deg"});
+                       "match_floor_tilt_power", "view_correlated_error_scale", "view_correlation_deg",
+                       "deformation_error_scale", "deformation_error_power"});
     MissionSettings& s = c.mission;
     mis.integer("cells_per_side", &s.grid.cells_per_side, 1, 4096);
     if (s.grid.cells_per_side != kOnboardGridSide) {
@@ -221,6 +222,8 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.number("match_floor_tilt_power", &s.match_floor_tilt_power, 0, kMaxMatchFloorTiltPower);
     mis.number("view_correlated_error_scale", &s.view_correlated_error_scale, 0, 100);  // vantage-sim's ranges
     mis.number("view_correlation_deg", &s.view_correlation_deg, 0.1, 180);
+    mis.number("deformation_error_scale", &s.deformation_error_scale, 0, 1e4);
+    mis.number("deformation_error_power", &s.deformation_error_power, 0.1, kMaxDeformationErrorPower);
     if (s.depth_min_m > 0.0 && s.depth_max_m > 0.0 && s.depth_max_m <= s.depth_min_m) {
       throw Failure{"mission.depth_max_m", "must be larger than depth_min_m"};
     }

@@ -71,6 +71,10 @@ struct MissionSettings {
   // primitive's matches from nearby views, as a multiple of its patch noise, decorrelating over that angle.
   double view_correlated_error_scale = FrontEndConfig{}.view_correlated_error_scale;
   double view_correlation_deg = FrontEndConfig{}.view_correlation_deg;
+  // FrontEndConfig::deformation_error_scale (0: off) and deformation_error_power: the view-correlated error of
+  // a match whose warp stretches the reference patch unevenly.
+  double deformation_error_scale = FrontEndConfig{}.deformation_error_scale;
+  double deformation_error_power = FrontEndConfig{}.deformation_error_power;
 };
 
 struct OnboardConfig {

@@ -141,6 +141,16 @@ int run_cli(int argc, const char* const* argv) {
                  "image front end: the angle over which that error decorrelates, exp(-angle / this) (degrees)")
       ->check(CLI::Range(0.1, 180.0))
       ->capture_default_str();
+  app.add_option("--deformation-error", options.deformation_error_scale,
+                 "image front end: the view-correlated error of a match whose warp stretches the reference patch "
+                 "unevenly, this times (singular value ratio - 1)^power times the match floor (0, the default: "
+                 "off; 60 with --match-floor-rad 1e-4: every tracked row of the consistency test in its band)")
+      ->check(CLI::Range(0.0, 1e4))
+      ->capture_default_str();
+  app.add_option("--deformation-error-power", options.deformation_error_power,
+                 "image front end: the power of (singular value ratio - 1) in that error")
+      ->check(CLI::Range(0.1, 8.0))
+      ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
                "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
                "coverage, a 640x480 plane's NEES below its band; default off)");

@@ -226,6 +226,8 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.require_converged_fit = options.require_converged_fit;
     fc.view_correlated_error_scale = options.view_correlated_error_scale;
     fc.view_correlation_deg = options.view_correlation_deg;
+    fc.deformation_error_scale = options.deformation_error_scale;
+    fc.deformation_error_power = options.deformation_error_power;
     fc.presmooth = options.presmooth;
     fc.spawn_normal_fit_along_rays = options.spawn_normal_fit_along_rays;
     fc.epipolar_guard_fraction = options.epipolar_guard_fraction;

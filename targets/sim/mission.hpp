@@ -66,6 +66,9 @@ struct MissionOptions {
   // Image front end: FrontEndConfig::view_correlated_error_scale (0: off) and view_correlation_deg.
   double view_correlated_error_scale = FrontEndConfig{}.view_correlated_error_scale;
   double view_correlation_deg = FrontEndConfig{}.view_correlation_deg;
+  // Image front end: FrontEndConfig::deformation_error_scale (0: off) and deformation_error_power.
+  double deformation_error_scale = FrontEndConfig{}.deformation_error_scale;
+  double deformation_error_power = FrontEndConfig{}.deformation_error_power;
   // Image front end: FrontEndConfig::confirm_min_depth_information (0: no provisional primitives) and
   // provisional_max_updates (0: keep them flagged). core/frontend/EXPERIMENTS.md, "Confirmation by parallax".
   double confirm_depth_information = FrontEndConfig{}.confirm_min_depth_information;

@@ -1496,3 +1496,119 @@ TEST_CASE(
   good.view_correlated_error_scale = 2.0;
   CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), good)));
 }
+
+namespace {
+
+// The ratio of a 2x2 map's singular values (the test's own: from the eigenvalues of B^T B).
+double singular_value_ratio(const Eigen::Matrix2d& B) {
+  const Eigen::Vector2d eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(B.transpose() * B).eigenvalues();
+  return std::sqrt(eigenvalues(1) / eigenvalues(0));
+}
+
+// Every tracked observation of one update: its primitive, its common error's covariance and its warp.
+struct CommonErrors : TrackObserver {
+  std::vector<PrimitiveIndex> index;
+  std::vector<Eigen::Matrix2d> common;
+  std::vector<Eigen::Matrix2d> B;
+  void on_observation(const TrackedObservation& o) override {
+    index.push_back(o.index);
+    common.push_back(o.common_covariance_px2);
+    B.push_back(o.B);
+  }
+};
+
+}  // namespace
+
+TEST_CASE(
+    "deformation_error_scale: a match's common error grows with how unevenly the warp stretches the patch, and the "
+    "match limit does not count it") {
+  Scene scene;
+  const Viewpoint oblique = vantage::test::looking_at_origin({22.9, 32.8, 0.0});  // 55 degrees off the normal
+  const auto third_image = scene.render(third_view());
+  const auto oblique_image = scene.render(oblique);
+  struct Run {
+    CommonErrors third;
+    CommonErrors oblique;
+    std::uint64_t too_uncertain_third = 0;
+    double mean_trace = 0.0;
+  };
+  auto run = [&](const FrontEndConfig& config) {
+    Run out;
+    initialize_on_plane(scene, first_view(), second_view(), config);
+    {
+      const vantage::test::ScopedTrackObserver shown(g_front_end, out.third);
+      (void)update_from(third_image, scene.k, third_view());
+    }
+    out.too_uncertain_third = g_front_end.stats().track_failures.too_uncertain;
+    {
+      const vantage::test::ScopedTrackObserver shown(g_front_end, out.oblique);
+      (void)update_from(oblique_image, scene.k, oblique);
+    }
+    std::size_t tracked = 0;
+    for (PrimitiveIndex i = 0; i < g_pool.index_bound(); ++i) {
+      if (!g_pool.is_alive(i) || g_pool[i].observation_count < 2) continue;  // matched in both views
+      out.mean_trace += g_pool[i].Sigma_world.trace();
+      ++tracked;
+    }
+    REQUIRE(tracked > 100u);
+    out.mean_trace /= static_cast<double>(tracked);
+    return out;
+  };
+  FrontEndConfig off = plane_config();
+  REQUIRE(off.deformation_error_scale == 0.0);  // off by default
+  FrontEndConfig on = off;
+  on.deformation_error_scale = 60.0;
+  on.deformation_error_power = 3.0;
+  const Run base = run(off);
+  const Run deformed = run(on);
+  // The third view's matches are the same in both runs (nothing before them differs): each common error is the
+  // patch noise plus scale x (r - 1)^power x the match floor.
+  const Eigen::Matrix2d floor_px2 = on.match_floor_px2(scene.k);
+  REQUIRE(base.third.index.size() > 200u);
+  REQUIRE(deformed.third.index == base.third.index);
+  double largest_error = 0.0;
+  for (std::size_t m = 0; m < base.third.index.size(); ++m) {
+    const double r = singular_value_ratio(deformed.third.B[m]);
+    const Eigen::Matrix2d expected = base.third.common[m] + 60.0 * std::pow(r - 1.0, 3.0) * floor_px2;
+    largest_error = std::max(largest_error, (deformed.third.common[m] - expected).norm() / expected.norm());
+  }
+  CHECK(largest_error < 1e-6);
+  // The limit weighs the match, not the model: it refuses as many of them, even where the deformation error
+  // alone would be ten floors.
+  FrontEndConfig huge = on;
+  huge.deformation_error_scale = 1e4;
+  const Run huge_run = run(huge);
+  CHECK(huge_run.third.index == base.third.index);
+  CHECK(huge_run.too_uncertain_third == base.too_uncertain_third);
+  // The oblique view stretches the patches more unevenly than the third, nearly frontal view.
+  auto mean_ratio = [](const CommonErrors& e) {
+    double sum = 0.0;
+    for (const Eigen::Matrix2d& B : e.B) sum += singular_value_ratio(B);
+    return sum / static_cast<double>(std::max<std::size_t>(1, e.B.size()));
+  };
+  REQUIRE(deformed.oblique.B.size() > 100u);
+  CHECK(mean_ratio(deformed.oblique) > mean_ratio(deformed.third) + 0.2);
+  // Its matches share that error, so the tracked primitives keep wider covariances.
+  CHECK(deformed.mean_trace > base.mean_trace);
+}
+
+TEST_CASE("configure refuses a negative or non-finite deformation error scale and a power outside (0, 8]") {
+  FrontEndConfig bad;
+  bad.deformation_error_scale = -1.0;
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);
+  bad.deformation_error_scale = std::numeric_limits<double>::quiet_NaN();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kNonFiniteInput);
+  FrontEndConfig power;
+  power.deformation_error_scale = 60.0;
+  for (double p : {0.0, -1.0, kMaxDeformationErrorPower + 0.5}) {
+    power.deformation_error_power = p;
+    CHECK(g_front_end.configure(vantage::test::small_intrinsics(), power) == Status::kInvalidArgument);
+  }
+  power.deformation_error_power = std::numeric_limits<double>::infinity();
+  CHECK(g_front_end.configure(vantage::test::small_intrinsics(), power) == Status::kNonFiniteInput);
+  CHECK_FALSE(g_front_end.configured());
+  FrontEndConfig good;
+  good.deformation_error_scale = 60.0;
+  good.deformation_error_power = kMaxDeformationErrorPower;
+  CHECK(ok(g_front_end.configure(vantage::test::small_intrinsics(), good)));
+}

@@ -847,3 +847,26 @@ TEST_CASE("a plane fit along the rays drops a neighbour across a depth edge and 
                                                              grid.camera, config, &normal, &tilt_variance));
   CHECK(fitted);
 }
+
+TEST_CASE("warp_stretch_ratio: 1 for an even stretch at any scale or rotation, the singular values' ratio else, capped") {
+  const double max_ratio = 10.0;
+  CHECK(vantage::warp_stretch_ratio(Eigen::Matrix2d::Identity(), max_ratio) == Approx(1.0));
+  const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(0.7).toRotationMatrix();
+  CHECK(vantage::warp_stretch_ratio(3.0 * rotation, max_ratio) == Approx(1.0));
+  // Foreshortened by cos(60 degrees) along one axis, then rotated: 2.
+  const Eigen::Matrix2d foreshortened = rotation * Eigen::Vector2d(1.0, 0.5).asDiagonal() * rotation.transpose();
+  CHECK(vantage::warp_stretch_ratio(foreshortened, max_ratio) == Approx(2.0));
+  Eigen::Matrix2d sheared;
+  sheared << 1.0, 0.6, 0.0, 1.0;
+  const Eigen::JacobiSVD<Eigen::Matrix2d> svd(sheared);
+  CHECK(vantage::warp_stretch_ratio(sheared, max_ratio) ==
+        Approx(svd.singularValues()(0) / svd.singularValues()(1)));
+  // A singular or non-finite map stretches without bound: the cap.
+  Eigen::Matrix2d singular;
+  singular << 1.0, 2.0, 2.0, 4.0;
+  CHECK(vantage::warp_stretch_ratio(singular, max_ratio) == max_ratio);
+  CHECK(vantage::warp_stretch_ratio(Eigen::Matrix2d::Zero(), max_ratio) == max_ratio);
+  Eigen::Matrix2d not_a_number = Eigen::Matrix2d::Identity();
+  not_a_number(0, 1) = std::numeric_limits<double>::quiet_NaN();
+  CHECK(vantage::warp_stretch_ratio(not_a_number, max_ratio) == max_ratio);
+}

@@ -57,6 +57,8 @@ mission:
   match_floor_tilt_power: 1
   view_correlated_error_scale: 2
   view_correlation_deg: 20
+  deformation_error_scale: 60
+  deformation_error_power: 2.5
 )";
   OnboardConfig c;
   REQUIRE(parse_onboard_config(yaml, "onboard.yaml", "/etc/vantage", &c) == "");
@@ -86,6 +88,8 @@ mission:
   CHECK(c.mission.match_floor_tilt_power == 1.0);
   CHECK(c.mission.view_correlated_error_scale == 2.0);
   CHECK(c.mission.view_correlation_deg == 20.0);
+  CHECK(c.mission.deformation_error_scale == 60.0);
+  CHECK(c.mission.deformation_error_power == 2.5);
   OnboardConfig defaults;
   REQUIRE(parse_onboard_config("camera:\n  driver: sim\n", "onboard.yaml", "", &defaults) == "");
   CHECK_FALSE(defaults.mission.inverse_warp_masked);
@@ -99,6 +103,8 @@ mission:
   CHECK(defaults.mission.match_floor_tilt_power == FrontEndConfig{}.match_floor_tilt_power);
   CHECK(defaults.mission.view_correlated_error_scale == FrontEndConfig{}.view_correlated_error_scale);
   CHECK(defaults.mission.view_correlation_deg == FrontEndConfig{}.view_correlation_deg);
+  CHECK(defaults.mission.deformation_error_scale == FrontEndConfig{}.deformation_error_scale);
+  CHECK(defaults.mission.deformation_error_power == FrontEndConfig{}.deformation_error_power);
 }
 
 TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
@@ -138,6 +144,10 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.match_floor_tilt_power: 5 is outside [0, 4]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  view_correlation_deg: 0\n") ==
         "onboard.yaml: mission.view_correlation_deg: 0 is outside [0.1, 180]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  deformation_error_scale: -1\n") ==
+        "onboard.yaml: mission.deformation_error_scale: -1 is outside [0, 10000]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  deformation_error_power: 9\n") ==
+        "onboard.yaml: mission.deformation_error_power: 9 is outside [0.1, 8]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: wide\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: must be a number");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  inverse_warp_ncc_min: 1\n") ==

@@ -115,6 +115,9 @@ TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected")
   // So are a negative view-correlated error and a correlation angle that is not positive.
   CHECK(run({"--view-correlated-error", "-1", "--quiet"}) == 1);
   CHECK(run({"--view-correlation-deg", "0", "--quiet"}) == 1);
+  // And a negative deformation error or a power outside (0, 8].
+  CHECK(run({"--deformation-error", "-1", "--quiet"}) == 1);
+  CHECK(run({"--deformation-error-power", "9", "--quiet"}) == 1);
 }
 
 TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing in units") {
