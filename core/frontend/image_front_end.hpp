@@ -43,9 +43,9 @@ inline constexpr double kMaxEpipolarGuardFraction = 4.0;
 // FrontEndConfig::match_floor_tilt_power: at most this power, and the tilt's cosine taken as at least
 // kMatchFloorMinCos (78 degrees), so a grazing view's floor grows at most 0.2^-k times.
 inline constexpr double kMaxMatchFloorTiltPower = 4.0;
+inline constexpr double kMatchFloorMinCos = 0.2;
 // FrontEndConfig::deformation_error_power: at most this power (the singular values' ratio less one).
 inline constexpr double kMaxDeformationErrorPower = 8.0;
-inline constexpr double kMatchFloorMinCos = 0.2;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 // A normal's local plane fit reads the cells within this many of its own (FrontEndConfig::normal_fit_ring_cells).

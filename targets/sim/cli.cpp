@@ -149,7 +149,7 @@ int run_cli(int argc, const char* const* argv) {
       ->capture_default_str();
   app.add_option("--deformation-error-power", options.deformation_error_power,
                  "image front end: the power of (singular value ratio - 1) in that error")
-      ->check(CLI::Range(0.1, 8.0))
+      ->check(CLI::Range(0.1, vantage::kMaxDeformationErrorPower))
       ->capture_default_str();
   app.add_flag("--refit-supersedes-spawn-fit", options.refit_supersedes_spawn_fit,
                "image front end: a normal refit replaces the spawn's plane fit whatever that claims (more verified "
