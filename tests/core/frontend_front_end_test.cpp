@@ -1520,7 +1520,7 @@ struct CommonErrors : TrackObserver {
 }  // namespace
 
 TEST_CASE(
-    "deformation_error_scale: a match's common error grows with how unevenly the warp stretches the patch, and the "
+    "deformation_error_scale: a match's common error grows with how unevenly the warp stretches the patch and the "
     "match limit does not count it") {
   Scene scene;
   const Viewpoint oblique = vantage::test::looking_at_origin({22.9, 32.8, 0.0});  // 55 degrees off the normal
@@ -1592,7 +1592,7 @@ TEST_CASE(
   CHECK(deformed.mean_trace > base.mean_trace);
 }
 
-TEST_CASE("configure refuses a negative or non-finite deformation error scale and a power outside (0, 8]") {
+TEST_CASE("configure refuses a negative or non-finite deformation error scale and a power that is not in (0 to 8)") {
   FrontEndConfig bad;
   bad.deformation_error_scale = -1.0;
   CHECK(g_front_end.configure(vantage::test::small_intrinsics(), bad) == Status::kInvalidArgument);

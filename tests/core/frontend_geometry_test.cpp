@@ -848,7 +848,9 @@ TEST_CASE("a plane fit along the rays drops a neighbour across a depth edge and 
   CHECK(fitted);
 }
 
-TEST_CASE("warp_stretch_ratio: 1 for an even stretch at any scale or rotation, the singular values' ratio else, capped") {
+TEST_CASE(
+    "warp_stretch_ratio: 1 for an even stretch at any scale or rotation and else the singular values' ratio up to "
+    "its cap") {
   const double max_ratio = 10.0;
   CHECK(vantage::warp_stretch_ratio(Eigen::Matrix2d::Identity(), max_ratio) == Approx(1.0));
   const Eigen::Matrix2d rotation = Eigen::Rotation2Dd(0.7).toRotationMatrix();

@@ -1659,7 +1659,7 @@ TEST_CASE("the view-correlated error brings the bunny's tracked rows toward 3 an
 // the oblique bunny gets much of it and the plane seen nearly head-on little, and the lower floor lifts the
 // planes. Every tracked row of both scenes at both resolutions lies in its band, which no configuration did
 // before (today's default 2.555 / 4.526 / 2.980 / 5.021, plane / bunny at 320x240, then at 640x480).
-TEST_CASE("with the deformation error and a lower floor, every tracked row of both scenes lies in its band",
+TEST_CASE("with the deformation error and a lower floor every tracked row of both scenes lies in its band",
           "[.][deformation]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
     for (bool bunny_scene : {false, true}) {
