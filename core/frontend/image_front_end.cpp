@@ -393,6 +393,7 @@ void ImageFrontEnd::forget_primitive_tables() {
     noise.covariance_px2.setZero();
     noise.correlated_cross_covariance.setZero();
     noise.correlated_view = 0;
+    noise.correlated_trace = 0.0f;
   }
   rejected_in_a_row_.fill(0);
 }
@@ -945,7 +946,9 @@ bool ImageFrontEnd::match_too_uncertain(const Eigen::Matrix2d& R_px2, const Comm
                                         const Eigen::Matrix2d& deformation_px2) const {
   if (!(max_match_variance_px2_ > 0.0)) return false;
   double variance_sum = R_px2.trace() + common.projected_px2().trace();
-  if (config_.deformation_error_scale > 0.0) variance_sum -= (common.B * deformation_px2 * common.B.transpose()).trace();
+  if (config_.deformation_error_scale > 0.0) {
+    variance_sum -= (common.B * deformation_px2 * common.B.transpose()).trace();
+  }
   // A NaN covariance is refused too: nothing can weigh it.
   return !(0.5 * variance_sum <= max_match_variance_px2_);
 }
@@ -1167,9 +1170,7 @@ void ImageFrontEnd::common_error_for_match(PrimitiveIndex i, const Primitive& p,
 Eigen::Matrix2d ImageFrontEnd::deformation_error_px2(const Eigen::Matrix2d& B) const {
   const double scale = config_.deformation_error_scale;
   if (!(scale > 0.0)) return Eigen::Matrix2d::Zero();
-  // The ratio capped at 10 (about 84 degrees of foreshortening), where a nearly singular warp would make it
-  // unbounded.
-  const double ratio = warp_stretch_ratio(B, 10.0);
+  const double ratio = warp_stretch_ratio(B, kMaxDeformationStretchRatio);
   return scale * std::pow(ratio - 1.0, config_.deformation_error_power) * match_floor_px2_;
 }
 
@@ -1336,7 +1337,9 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       observation.R_b_px2 = measurement_R(fit_covariance);
       // The view-correlated error's share of this match (FrontEndConfig::view_correlated_error_scale x P_c).
       Eigen::Matrix2d P_c;
-      if (spawn_patch_noise_px2(fit_covariance, &P_c)) observation.R_b_px2 += config_.view_correlated_error_scale * P_c;
+      if (config_.view_correlated_error_scale > 0.0 && spawn_patch_noise_px2(fit_covariance, &P_c)) {
+        observation.R_b_px2 += config_.view_correlated_error_scale * P_c;
+      }
       bool triangulated = ok(triangulate_two_views(observation, intrinsics_, &p.X_world, &p.Sigma_world));
       if (triangulated && config_.model_normal_uncertainty && config_.model_spawn_normal_uncertainty && config_.adaptive_R) {
         // Again with the unknown normal's share of the match error (spawn_warp_covariance, at X).

@@ -46,6 +46,9 @@ inline constexpr double kMaxMatchFloorTiltPower = 4.0;
 inline constexpr double kMatchFloorMinCos = 0.2;
 // FrontEndConfig::deformation_error_power: at most this power (the singular values' ratio less one).
 inline constexpr double kMaxDeformationErrorPower = 8.0;
+// The deformation error's stretch ratio is taken as at most this (about 84 degrees of foreshortening), where a
+// nearly singular warp would make it unbounded (warp_stretch_ratio's cap).
+inline constexpr double kMaxDeformationStretchRatio = 10.0;
 // Primitives whose normal uncertainty is tracked (pool indices beyond it get the facing-camera prior).
 inline constexpr std::size_t kFrontEndMaxPrimitives = kDefaultPrimitiveCapacity;
 // A normal's local plane fit reads the cells within this many of its own (FrontEndConfig::normal_fit_ring_cells).

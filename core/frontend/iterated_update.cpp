@@ -52,7 +52,9 @@ double nonfinite_probe(const Eigen::MatrixBase<Derived>& m) {
                  nonfinite_probe(view.R_world_cam) + nonfinite_probe(primitive.X_world) + nonfinite_probe(config.R_px2) +
                  nonfinite_probe(common.covariance_px2) + nonfinite_probe(common.cross_covariance) +
                  nonfinite_probe(common.B);
-  if (common.has_part) probe += nonfinite_probe(common.part_covariance_px2) + nonfinite_probe(common.part_cross_covariance);
+  if (common.has_part) {
+    probe += nonfinite_probe(common.part_covariance_px2) + nonfinite_probe(common.part_cross_covariance);
+  }
   if (at_prior != nullptr) probe += nonfinite_probe(at_prior->predicted_px) + nonfinite_probe(at_prior->H);
   return probe == 0.0;
 }

@@ -84,7 +84,7 @@ void GateDiagnostics::on_observation(const TrackedObservation& o) {
     return;
   }
   const Eigen::Vector2d match_error = o.observed_px - uv_true;
-  ByDeformation& deformation = by_deformation_[deformation_bin(warp_stretch_ratio(o.B, 10.0))];
+  ByDeformation& deformation = by_deformation_[deformation_bin(warp_stretch_ratio(o.B, kMaxDeformationStretchRatio))];
   deformation.observations += 1;
   if (match_error.norm() > 2.0) {
     b.wrong += 1;

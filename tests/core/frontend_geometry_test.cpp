@@ -416,7 +416,8 @@ TEST_CASE("a view-correlated common error decayed between views, with the consta
   CHECK(nees[2] > 3.5);
 }
 
-TEST_CASE("the part of the common error kept apart is carried by the same rule, and without has_part it is not touched") {
+TEST_CASE(
+    "the part of the common error kept apart is carried by the same rule and without has_part it is not touched") {
   const PinholeIntrinsics k = vantage::test::small_intrinsics();
   const Viewpoint view = vantage::test::looking_at_origin({30.0, 2.0, 1.0});
   Primitive start;
