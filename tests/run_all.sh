@@ -22,7 +22,7 @@ run_preset() {
 # the Debug step's test time (2.3 s and 22 s in Release). Release runs them with the guards (the other
 # suites run in Debug, ASan and aarch64), so it builds what ships, what the guards read, integration_tests
 # and the VM tests' programs, not the other suites. ASan runs the integration test's visible cases too.
-run_preset debug -- -LE '^vm$' -E '^integration_tests:'
+run_preset debug -- -E '^integration_tests:|^vm_'
 run_preset release --target vantage_executables vantage_guard_inputs integration_tests vantage_vm_inputs -- \
   -R '^guard_|^integration_|^vm_'
 run_preset asan
