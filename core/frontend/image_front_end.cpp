@@ -178,7 +178,7 @@ Status FrontEndConfig::validate() const {
                            direct_fit_max_px, confirm_min_depth_information, epipolar_guard_fraction,
                            normal_refit_residual_floor, normal_spawn_residual_floor, max_match_sigma_rad,
                            view_correlated_error_scale, view_correlation_deg, deformation_error_scale,
-                           deformation_error_power};
+                           deformation_error_power, spawn_back_match_max_px};
   for (double v : values) {
     if (!std::isfinite(v)) return Status::kNonFiniteInput;
   }
@@ -206,6 +206,7 @@ Status FrontEndConfig::validate() const {
   if (!(epipolar_guard_fraction >= 0.0 && epipolar_guard_fraction <= kMaxEpipolarGuardFraction)) {
     return Status::kInvalidArgument;
   }
+  if (!(spawn_back_match_max_px >= 0.0)) return Status::kInvalidArgument;
   if (!finite_positive(max_initial_sigma) || !(warp_min_deviation >= 0.0)) return Status::kInvalidArgument;
   if (!(min_facing_cos > -1.0 && min_facing_cos < 1.0)) return Status::kInvalidArgument;
   if (!(min_image_stddev_gray >= 0.0f) || !(max_clipped_fraction > 0.0f && max_clipped_fraction <= 1.0f)) {
@@ -1331,6 +1332,10 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
         continue;
       }
       ++stats_.seeds_matched;
+      if (config_.spawn_back_match_max_px > 0.0 && !matches_back(reference, other, query, matched_px, match)) {
+        ++stats_.seeds_rejected_back_match;
+        continue;
+      }
       correlate_fit_covariance(other, tmpl, matched_px, &fit_covariance);
       observation.uv_a_px = query.uv_first_px;
       observation.uv_b_px = matched_px;
@@ -1399,6 +1404,34 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
           footprint_radius(stride, cell_depth_[cell], focal, to_camera.dot(p.normal_world.cast<double>())));
     }
   }
+}
+
+bool ImageFrontEnd::matches_back(const GrayImageView& reference, const GrayImageView& other,
+                                 const EpipolarQuery& forward, const Eigen::Vector2d& matched_px,
+                                 const MatchConfig& match) {
+  const std::int32_t bx = static_cast<std::int32_t>(std::lround(matched_px.x()));
+  const std::int32_t by = static_cast<std::int32_t>(std::lround(matched_px.y()));
+  if (!patch_inside(other, bx, by, 1)) return true;
+  std::array<std::uint8_t, kPatchPixels> patch;
+  extract_patch(other, bx, by, &patch);
+  NccTemplate back_template;
+  make_template(patch, &back_template);
+  EpipolarQuery back = forward;
+  back.first = forward.second;
+  back.second = forward.first;
+  back.uv_first_px = Eigen::Vector2d(bx, by);
+  Eigen::Vector2d back_px;
+  float best = 0.0f;
+  const MatchOutcome outcome =
+      search_epipolar(reference, back_template, back, intrinsics_, match,
+                      Span<float>(epipolar_ncc_.data(), epipolar_ncc_.size()),
+                      Span<std::int32_t>(epipolar_xy_.data(), epipolar_xy_.size()), &back_px, &best);
+  if (outcome == MatchOutcome::kNoRoom) return true;
+  if (outcome != MatchOutcome::kMatched) return false;
+  // Between two nearby views the local map is close to the identity, so the pixel the back search
+  // started from lies about its offset from the match away from the seed.
+  const Eigen::Vector2d expected = forward.uv_first_px + (back.uv_first_px - matched_px);
+  return (back_px - expected).norm() <= config_.spawn_back_match_max_px;
 }
 
 }  // namespace vantage

@@ -150,6 +150,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.inverse_warp_ncc_min = static_cast<float>(m.inverse_warp_ncc_min);
   fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
   fc.epipolar_guard_fraction = m.epipolar_guard_fraction;
+  fc.spawn_back_match_max_px = m.spawn_back_match_max_px;
   fc.max_match_sigma_rad = m.max_match_sigma_rad;
   fc.subpixel_iterations = m.subpixel_iterations;
   fc.require_converged_fit = m.require_converged_fit;

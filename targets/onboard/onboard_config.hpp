@@ -56,6 +56,9 @@ struct MissionSettings {
   // FrontEndConfig::epipolar_guard_fraction: how far past the depth range a new primitive's epipolar
   // search looks (a fraction of the range's inverse-depth span; a surface found there spawns nothing).
   double epipolar_guard_fraction = FrontEndConfig{}.epipolar_guard_fraction;
+  // FrontEndConfig::spawn_back_match_max_px: a new primitive's match must match back to its seed within
+  // this many pixels (the left-right check; 0: off).
+  double spawn_back_match_max_px = FrontEndConfig{}.spawn_back_match_max_px;
   // FrontEndConfig::max_match_sigma_rad: a tracked match whose modelled sd exceeds this angle times the
   // focal length is not used (0: off; more trustworthy sigmas, less coverage early in a mission).
   double max_match_sigma_rad = FrontEndConfig{}.max_match_sigma_rad;

@@ -95,6 +95,11 @@ int run_cli(int argc, const char* const* argv) {
                  "fraction of the range's inverse-depth span (a best peak there spawns nothing; 0: off)")
       ->check(CLI::Range(0.0, vantage::kMaxEpipolarGuardFraction))
       ->capture_default_str();
+  app.add_option("--spawn-back-match-px", options.spawn_back_match_max_px,
+                 "image front end: a new primitive's match must match back to within this many pixels of its "
+                 "seed along the reverse epipolar line (the left-right check; 0: off)")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
   // rays / scatter, mapped onto the bool after parsing.
   std::string spawn_normal_fit = options.spawn_normal_fit_along_rays ? "rays" : "scatter";
   app.add_option("--spawn-normal-fit", spawn_normal_fit,

@@ -101,6 +101,7 @@ struct MissionSummary {
   std::uint64_t seeds_tried = 0;
   std::uint64_t seeds_matched = 0;
   std::uint64_t seeds_beyond_depth_range = 0;
+  std::uint64_t seeds_rejected_back_match = 0;
   // Every innovation the EKF's gate tested (image front end or oracle): the consistency check without
   // ground truth (core/estimation/nis_histogram.hpp).
   NisHistogram innovations;

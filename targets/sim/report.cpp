@@ -288,6 +288,7 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"seeds_tried\": " << s.seeds_tried << ",\n"
       << "  \"seeds_matched\": " << s.seeds_matched << ",\n"
       << "  \"seeds_beyond_depth_range\": " << s.seeds_beyond_depth_range << ",\n"
+      << "  \"seeds_rejected_back_match\": " << s.seeds_rejected_back_match << ",\n"
       << "  \"innovations\": " << innovations_json(s.innovations) << "\n"
       << "}\n";
   return out.str();

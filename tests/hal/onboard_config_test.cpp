@@ -50,6 +50,7 @@ mission:
   inverse_warp_ncc_min: 0.95
   spawn_normal_fit_along_rays: false
   epipolar_guard_fraction: 1.5
+  spawn_back_match_max_px: 0.75
   max_match_sigma_rad: 4.3e-4
   subpixel_iterations: 6
   require_converged_fit: true
@@ -81,6 +82,7 @@ mission:
   CHECK(c.mission.inverse_warp_ncc_min == 0.95);
   CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
   CHECK(c.mission.epipolar_guard_fraction == 1.5);
+  CHECK(c.mission.spawn_back_match_max_px == 0.75);
   CHECK(c.mission.max_match_sigma_rad == 4.3e-4);
   CHECK(c.mission.subpixel_iterations == 6);
   CHECK(c.mission.require_converged_fit);
@@ -96,6 +98,7 @@ mission:
   CHECK(defaults.mission.inverse_warp_ncc_min == FrontEndConfig{}.inverse_warp_ncc_min);
   CHECK(defaults.mission.spawn_normal_fit_along_rays);
   CHECK(defaults.mission.epipolar_guard_fraction == FrontEndConfig{}.epipolar_guard_fraction);
+  CHECK(defaults.mission.spawn_back_match_max_px == FrontEndConfig{}.spawn_back_match_max_px);
   CHECK(defaults.mission.max_match_sigma_rad == FrontEndConfig{}.max_match_sigma_rad);
   CHECK(defaults.mission.subpixel_iterations == FrontEndConfig{}.subpixel_iterations);
   CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);
@@ -134,6 +137,8 @@ TEST_CASE("onboard configuration errors name the file and field", "[onboard]") {
         "onboard.yaml: mission.spawn_normal_fit_along_rays: must be true or false");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  epipolar_guard_fraction: -0.5\n") ==
         "onboard.yaml: mission.epipolar_guard_fraction: -0.5 is outside [0, 4]");
+  CHECK(error_for("camera:\n  driver: sim\nmission:\n  spawn_back_match_max_px: -1\n") ==
+        "onboard.yaml: mission.spawn_back_match_max_px: -1 is outside [0, 100]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  max_match_sigma_rad: 0.01\n") ==
         "onboard.yaml: mission.max_match_sigma_rad: 0.01 is outside [0, 0.009]");
   CHECK(error_for("camera:\n  driver: sim\nmission:\n  subpixel_iterations: 21\n") ==

@@ -118,6 +118,8 @@ TEST_CASE("vantage-sim: bad planner names and missing scene files are rejected")
   // And a negative deformation error or a power outside (0, 8].
   CHECK(run({"--deformation-error", "-1", "--quiet"}) == 1);
   CHECK(run({"--deformation-error-power", "9", "--quiet"}) == 1);
+  // And a negative back-match bound.
+  CHECK(run({"--spawn-back-match-px", "-1", "--quiet"}) == 1);
 }
 
 TEST_CASE("vantage-sim: the sampling rate along a path follows the image spacing in units") {
@@ -180,12 +182,26 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(beyond >= 0);
   CHECK(seeded + beyond <= tried);
   CHECK(beyond < tried / 20);
+  // The left-right check is off by default: no seed refused by it.
+  CHECK(json_count(summary, "seeds_rejected_back_match") == 0);
   // Every innovation the gate tested is a matched observation's (not all matches reach the gate: too uncertain).
   const std::size_t innovations = summary.find("\"innovations\": {");
   REQUIRE(innovations != std::string::npos);
   const long long tested = json_count(summary.substr(innovations), "count");
   CHECK(tested > 0);
   CHECK(tested <= matched);
+  fs::remove_all(out);
+}
+
+TEST_CASE("vantage-sim: --spawn-back-match-px refuses some matched seeds, far from all") {
+  const fs::path out = fresh_dir("back_match");
+  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--spawn-back-match-px",
+               "1", "--out", out.string()}) == 2);
+  const std::string summary = read(out / "summary.json");
+  const long long seeded = json_count(summary, "seeds_matched");
+  const long long refused = json_count(summary, "seeds_rejected_back_match");
+  CHECK(refused > 0);
+  CHECK(refused < seeded / 5);
   fs::remove_all(out);
 }
 
