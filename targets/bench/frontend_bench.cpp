@@ -218,14 +218,25 @@ BENCHMARK(BM_FrontEndTrack20kVgaPlainModel)->Unit(benchmark::kMillisecond)->UseM
 // A whole frame: the same tracking plus model augmentation (epipolar search of the seeds no primitive
 // covers against the previous image, 1.5 degrees away). The front end is re-initialized and the pool
 // refilled, untimed, before each update so the previous image is the second one every time.
-void BM_FrontEndFrame20kVga(benchmark::State& state) {
+void frame_with(benchmark::State& state, const vantage::FrontEndConfig& config) {
   Views views;
-  if (!set_up(state, &views)) return;
+  if (!set_up(state, &views, config)) return;
   run_updates(state, views, [&views] {
     return restart_with_bench_pool(views);
   });
 }
+
+void BM_FrontEndFrame20kVga(benchmark::State& state) { frame_with(state, vantage::FrontEndConfig{}); }
 BENCHMARK(BM_FrontEndFrame20kVga)->Unit(benchmark::kMillisecond)->UseManualTime();
+
+// The same with the spawn's left-right check (FrontEndConfig::spawn_back_match_max_px at 1 px): one more
+// epipolar search per matched seed (core/frontend/EXPERIMENTS.md, "Session 42").
+void BM_FrontEndFrame20kVgaBackMatch(benchmark::State& state) {
+  vantage::FrontEndConfig config;
+  config.spawn_back_match_max_px = 1.0;
+  frame_with(state, config);
+}
+BENCHMARK(BM_FrontEndFrame20kVgaBackMatch)->Unit(benchmark::kMillisecond)->UseManualTime();
 
 // FrontEndConfig::presmooth's cost: the 3x3 binomial low-pass of one 640x480 frame (thread CPU).
 void BM_BinomialSmoothVga(benchmark::State& state) {
