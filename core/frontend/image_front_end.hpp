@@ -669,8 +669,9 @@ class ImageFrontEnd final : public MeasurementSource {
   // at matched_px in `other` matches back along forward's epipolar line, read the other way, within the
   // bound of the seed, or when that search has no room; uses the epipolar scratch. Not inlined: its
   // template stays off spawn()'s frame (the core's 16 KB frame limit under ASan).
-  [[gnu::noinline]] bool matches_back(const GrayImageView& reference, const GrayImageView& other, const EpipolarQuery& forward,
-                    const Eigen::Vector2d& matched_px, const MatchConfig& match);
+  [[gnu::noinline]] bool matches_back(const GrayImageView& reference, const GrayImageView& other,
+                                     const EpipolarQuery& forward, const Eigen::Vector2d& matched_px,
+                                     const MatchConfig& match);
   // Keeps `image` (the frame as the matcher read it) as the previous frame; no copy when it already is
   // previous_image_.
   void remember(const GrayImageView& image, const Viewpoint& view);

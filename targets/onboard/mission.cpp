@@ -268,7 +268,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   std::printf("%s\n", targets::tracking_summary(tracked.tracks_predicted, tracked.tracks_matched,
                                                        tracked.tracks_inverse_warped, tracked.track_failures).c_str());
   std::printf("%s\n", targets::seeding_summary(tracked.seeds_tried, tracked.seeds_matched,
-                                                      tracked.seeds_beyond_depth_range).c_str());
+                                                      tracked.seeds_beyond_depth_range,
+                                                      tracked.seeds_rejected_back_match).c_str());
   std::printf("%s\n", targets::innovation_summary(tracked.ekf.nis).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {

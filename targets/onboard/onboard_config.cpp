@@ -216,7 +216,8 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.number("inverse_warp_ncc_min", &s.inverse_warp_ncc_min, 0.01, 0.999);
     mis.boolean("spawn_normal_fit_along_rays", &s.spawn_normal_fit_along_rays);
     mis.number("epipolar_guard_fraction", &s.epipolar_guard_fraction, 0, kMaxEpipolarGuardFraction);
-    mis.number("spawn_back_match_max_px", &s.spawn_back_match_max_px, 0, 100);  // vantage-sim --spawn-back-match-px's range
+    // vantage-sim --spawn-back-match-px's range.
+    mis.number("spawn_back_match_max_px", &s.spawn_back_match_max_px, 0, 100);
     mis.number("max_match_sigma_rad", &s.max_match_sigma_rad, 0, 9e-3);
     mis.integer("subpixel_iterations", &s.subpixel_iterations, 0, 20);
     mis.boolean("require_converged_fit", &s.require_converged_fit);

@@ -293,7 +293,8 @@ int run_cli(int argc, const char* const* argv) {
         std::cout << "  " << targets::tracking_summary(summary.tracks_predicted, summary.tracks_matched,
                                                    summary.tracks_inverse_warped, summary.track_failures) << "\n";
         std::cout << "  " << targets::seeding_summary(summary.seeds_tried, summary.seeds_matched,
-                                                  summary.seeds_beyond_depth_range) << "\n";
+                                                  summary.seeds_beyond_depth_range,
+                                                  summary.seeds_rejected_back_match) << "\n";
       }
       std::cout << "  " << targets::innovation_summary(summary.innovations) << "\n";
       if (!out_dir.empty()) {

@@ -60,7 +60,8 @@ void copy_patch(const Image& from, std::int32_t fx, std::int32_t fy, Image* to, 
                 std::int32_t width) {
   for (std::int32_t dy = -kPatchSize / 2; dy <= kPatchSize / 2; ++dy) {
     for (std::int32_t dx = -kPatchSize / 2; dx <= kPatchSize / 2; ++dx) {
-      (*to)[static_cast<std::size_t>(ty + dy) * width + tx + dx] = from[static_cast<std::size_t>(fy + dy) * width + fx + dx];
+      const std::size_t source = static_cast<std::size_t>(fy + dy) * width + fx + dx;
+      (*to)[static_cast<std::size_t>(ty + dy) * width + tx + dx] = from[source];
     }
   }
 }
