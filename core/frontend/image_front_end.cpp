@@ -1332,7 +1332,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
         continue;
       }
       ++stats_.seeds_matched;
-      if (config_.spawn_back_match_max_px > 0.0 && !matches_back(reference, other, query, matched_px, match)) {
+      if (config_.spawn_back_match_max_px > 0.0 &&
+          !matches_back(reference, other, query, matched_px, match, ncc_scratch, xy_scratch)) {
         ++stats_.seeds_rejected_back_match;
         continue;
       }
@@ -1408,7 +1409,8 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
 
 bool ImageFrontEnd::matches_back(const GrayImageView& reference, const GrayImageView& other,
                                  const EpipolarQuery& forward, const Eigen::Vector2d& matched_px,
-                                 const MatchConfig& match) {
+                                 const MatchConfig& match, Span<float> ncc_scratch,
+                                 Span<std::int32_t> xy_scratch) {
   const std::int32_t bx = static_cast<std::int32_t>(std::lround(matched_px.x()));
   const std::int32_t by = static_cast<std::int32_t>(std::lround(matched_px.y()));
   if (!patch_inside(other, bx, by, 1)) return true;
@@ -1423,9 +1425,7 @@ bool ImageFrontEnd::matches_back(const GrayImageView& reference, const GrayImage
   Eigen::Vector2d back_px;
   float best = 0.0f;
   const MatchOutcome outcome =
-      search_epipolar(reference, back_template, back, intrinsics_, match,
-                      Span<float>(epipolar_ncc_.data(), epipolar_ncc_.size()),
-                      Span<std::int32_t>(epipolar_xy_.data(), epipolar_xy_.size()), &back_px, &best);
+      search_epipolar(reference, back_template, back, intrinsics_, match, ncc_scratch, xy_scratch, &back_px, &best);
   if (outcome == MatchOutcome::kNoRoom) return true;
   if (outcome != MatchOutcome::kMatched) return false;
   // Between two nearby views the local map is close to the identity, so the pixel the back search

@@ -667,11 +667,12 @@ class ImageFrontEnd final : public MeasurementSource {
              PrimitivePoolView& pool, UpdateReport& report);
   // The left-right check of a spawn match (FrontEndConfig::spawn_back_match_max_px): true when the patch
   // at matched_px in `other` matches back along forward's epipolar line, read the other way, within the
-  // bound of the seed, or when that search has no room; uses the epipolar scratch. Not inlined: its
-  // template stays off spawn()'s frame (the core's 16 KB frame limit under ASan).
+  // bound of the seed, or when that search has no room; searches in spawn()'s epipolar scratch. Not
+  // inlined: its template stays off spawn()'s frame (the core's 16 KB frame limit under ASan).
   [[gnu::noinline]] bool matches_back(const GrayImageView& reference, const GrayImageView& other,
                                      const EpipolarQuery& forward, const Eigen::Vector2d& matched_px,
-                                     const MatchConfig& match);
+                                     const MatchConfig& match, Span<float> ncc_scratch,
+                                     Span<std::int32_t> xy_scratch);
   // Keeps `image` (the frame as the matcher read it) as the previous frame; no copy when it already is
   // previous_image_.
   void remember(const GrayImageView& image, const Viewpoint& view);

@@ -1,7 +1,6 @@
 // The left-right check of a new primitive's match (FrontEndConfig::spawn_back_match_max_px).
 #include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <vector>
 
 #include <catch2/catch.hpp>

@@ -143,14 +143,24 @@ long long json_count(const std::string& json, const std::string& key) {
   return std::stoll(json.substr(at + tag.size()));
 }
 
+// summary.json of an image mission on the default scene (the small one's 160 x 120 camera gives the image
+// front end no seeds) over the initial pair and one tracked image, with the extra options; its folder is
+// removed. The budget ends it, so vantage-sim exits with 2.
+std::string three_image_summary(const char* name, const std::vector<std::string>& extra) {
+  const fs::path out = fresh_dir(name);
+  std::vector<std::string> args = {"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  args.insert(args.end(), {"--out", out.string()});
+  REQUIRE(run(args) == 2);
+  const std::string summary = read(out / "summary.json");
+  fs::remove_all(out);
+  return summary;
+}
+
 }  // namespace
 
 TEST_CASE("vantage-sim: an image mission reports its tracked observations, every failure by its reason") {
-  const fs::path out = fresh_dir("tracking");
-  // The default scene (the small one's 160 x 120 camera gives the image front end no seeds): the initial
-  // pair and one tracked image.
-  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--out", out.string()}) == 2);
-  const std::string summary = read(out / "summary.json");
+  const std::string summary = three_image_summary("tracking", {});
   const long long predicted = json_count(summary, "tracks_predicted");
   const long long matched = json_count(summary, "tracks_matched");
   CHECK(json_count(summary, "tracks_inverse_warped") == 0);  // off by default
@@ -190,27 +200,19 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   const long long tested = json_count(summary.substr(innovations), "count");
   CHECK(tested > 0);
   CHECK(tested <= matched);
-  fs::remove_all(out);
 }
 
 TEST_CASE("vantage-sim: --spawn-back-match-px refuses some matched seeds, far from all") {
-  const fs::path out = fresh_dir("back_match");
-  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--spawn-back-match-px",
-               "1", "--out", out.string()}) == 2);
-  const std::string summary = read(out / "summary.json");
+  const std::string summary = three_image_summary("back_match", {"--spawn-back-match-px", "1"});
   const long long seeded = json_count(summary, "seeds_matched");
   const long long refused = json_count(summary, "seeds_rejected_back_match");
   CHECK(refused > 0);
   CHECK(refused < seeded / 5);
-  fs::remove_all(out);
 }
 
 TEST_CASE("vantage-sim: --max-match-sigma-rad below the match floor refuses every found match as too uncertain") {
-  const fs::path out = fresh_dir("too_uncertain");
   // 1e-4 rad is below the default floor (1.5e-4 rad), which every match's standard deviation includes.
-  REQUIRE(run({"--measurement", "image", "--gt-samples", "1000", "--quiet", "--budget", "3", "--max-match-sigma-rad",
-               "1e-4", "--out", out.string()}) == 2);
-  const std::string summary = read(out / "summary.json");
+  const std::string summary = three_image_summary("too_uncertain", {"--max-match-sigma-rad", "1e-4"});
   const long long predicted = json_count(summary, "tracks_predicted");
   const long long uncertain = json_count(summary, "too_uncertain");
   CHECK(json_count(summary, "tracks_matched") == 0);
@@ -221,5 +223,4 @@ TEST_CASE("vantage-sim: --max-match-sigma-rad below the match floor refuses ever
     failed += json_count(summary, reason);
   }
   CHECK(failed == predicted);
-  fs::remove_all(out);
 }
