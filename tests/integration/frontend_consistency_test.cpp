@@ -1743,9 +1743,9 @@ TEST_CASE("with the view-correlated error the left-right check comes closer to c
       const SceneRun& before = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthDefaultViewCorrelated);
       const SceneRun& after = scene_run(bunny_scene, resolution, Matcher::kFeatureTruthDefaultBackMatchViewCorrelated);
       INFO(scene_label(bunny_scene, resolution)
-           << ": match rate " << before.all.match_rate << " -> " << after.all.match_rate << ", tracked RMS surface error "
-           << before.tracked.rms_error << " -> " << after.tracked.rms_error << ", primitives " << before.all.primitives
-           << " -> " << after.all.primitives);
+           << ": match rate " << before.all.match_rate << " -> " << after.all.match_rate
+           << ", tracked RMS surface error " << before.tracked.rms_error << " -> " << after.tracked.rms_error
+           << ", primitives " << before.all.primitives << " -> " << after.all.primitives);
       REQUIRE(after.tracked.primitives > 150u);
       if (bunny_scene) {
         CHECK(after.all.match_rate > before.all.match_rate);
