@@ -807,7 +807,7 @@ void print_match_consistency(const Scene& scene, const FrontEndConfig& config, s
 // refuses every tracked match beyond the chi2(2) 99 % quantile against the truth, the normal oracle gives every
 // primitive its true normal before each update. EXPERIMENTS.md has each
 // configuration's session: the match limits "Session 27" and "Session 33", the converged fits "Session 30", the
-// tilted floor "Session 31" (with converged fits) and "Session 35" (on today's default), the tilted floor with
+// tilted floor "Session 31" (with converged fits) and "Session 35" (on the session 34 default), the tilted floor with
 // the inverse warp "Session 36".
 enum class Matcher {
   kDefault,
@@ -848,7 +848,9 @@ constexpr double kDeformationErrorScale = 60.0;        // at deformation_error_p
 constexpr double kDeformationFloorRad = 1.0e-4;        // the floor it is measured with
 constexpr double kBackMatchPx = 1.0;                   // the spawn's left-right check (session 42)
 
-enum class Base : std::uint8_t { kToday, kBeforeSession34 };
+// kToday: FrontEndConfig{}; kSession34: the default of sessions 34 to 43 (today's without the spawn's
+// left-right check, which session 44 turned on), the base the rows measured in those sessions keep.
+enum class Base : std::uint8_t { kToday, kSession34, kBeforeSession34 };
 // What a configuration changes from its base; a zero keeps the base's value.
 struct MatcherSettings {
   Matcher matcher;  // the row's key, checked against its place in the table
@@ -866,6 +868,7 @@ struct MatcherSettings {
   const char* label;             // appended to the scene's name
 };
 constexpr Base kToday = Base::kToday;
+constexpr Base kS34 = Base::kSession34;
 constexpr Base kBefore = Base::kBeforeSession34;
 // Rows: matcher, base, against_patch, inverse_warp_masked, inverse_warp_ncc_min, match_sigma_limit_rad,
 // converged_fits, match_floor_rad, floor_tilt_power, view_correlated_error, deformation_error, back_match_px,
@@ -897,20 +900,21 @@ constexpr MatcherSettings kMatcherSettings[kMatchers] = {
      0.0, 0.0, 0.0, " (match sigma limit 5e-4, floor 1.4e-4)"},
     {Matcher::kFeatureTruthSigmaLimitFloor, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, kLowerFloorRad, 0.0,
      0.0, 0.0, 0.0, " (match sigma limit, floor 1.4e-4)"},
-    {Matcher::kFeatureTruthDefault, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, ""},
+    {Matcher::kFeatureTruthDefault, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
+     " (the session 34 default)"},
     {Matcher::kPreviousDefault, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
      " (the default before session 34)"},
-    {Matcher::kFeatureTruthDefaultTiltFloor, kToday, true, false, 0.0f, 0.0, false, kTiltFloorRad, 1.0, 0.0, 0.0, 0.0,
+    {Matcher::kFeatureTruthDefaultTiltFloor, kS34, true, false, 0.0f, 0.0, false, kTiltFloorRad, 1.0, 0.0, 0.0, 0.0,
      " (tilted floor)"},
-    {Matcher::kFeatureTruthDefaultInverseTiltFloor, kToday, true, true, kInverseWarpNccMin, 0.0, false,
+    {Matcher::kFeatureTruthDefaultInverseTiltFloor, kS34, true, true, kInverseWarpNccMin, 0.0, false,
      kInverseTiltFloorRad, 1.0, 0.0, 0.0, 0.0, " (inverse warp with NCC 0.95, tilted floor 1.25e-4)"},
-    {Matcher::kFeatureTruthDefaultViewCorrelated, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0,
+    {Matcher::kFeatureTruthDefaultViewCorrelated, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0,
      kViewCorrelatedErrorScale, 0.0, 0.0, " (view-correlated error 2, 30 deg)"},
-    {Matcher::kFeatureTruthDefaultDeformation, kToday, true, false, 0.0f, 0.0, false, kDeformationFloorRad, 0.0, 0.0,
+    {Matcher::kFeatureTruthDefaultDeformation, kS34, true, false, 0.0f, 0.0, false, kDeformationFloorRad, 0.0, 0.0,
      kDeformationErrorScale, 0.0, " (deformation error 60, floor 1.0e-4)"},
-    {Matcher::kFeatureTruthDefaultBackMatch, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, kBackMatchPx,
-     " (left-right check 1 px)"},
-    {Matcher::kFeatureTruthDefaultBackMatchViewCorrelated, kToday, true, false, 0.0f, 0.0, false, 0.0, 0.0,
+    {Matcher::kFeatureTruthDefaultBackMatch, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, kBackMatchPx,
+     " (left-right check 1 px: today's default)"},
+    {Matcher::kFeatureTruthDefaultBackMatchViewCorrelated, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0,
      kViewCorrelatedErrorScale, 0.0, kBackMatchPx, " (left-right check 1 px, view-correlated error 2, 30 deg)"},
 };
 constexpr bool rows_in_order() {
@@ -923,9 +927,15 @@ static_assert(rows_in_order(), "kMatcherSettings: one row per Matcher, in the en
 const MatcherSettings& settings(Matcher matcher) { return kMatcherSettings[static_cast<int>(matcher)]; }
 bool feature_truth(Matcher matcher) { return settings(matcher).against_patch; }
 
+// The default of sessions 34 to 43: today's without the spawn's left-right check.
+FrontEndConfig session34_default() {
+  FrontEndConfig config;
+  config.spawn_back_match_max_px = 0.0;
+  return config;
+}
 // The default before session 34: no match limit, the floor at kPreviousFloorRad, no spawn residual floor.
 FrontEndConfig previous_default() {
-  FrontEndConfig config;
+  FrontEndConfig config = session34_default();
   config.max_match_sigma_rad = 0.0;
   config.match_sigma_floor_rad = kPreviousFloorRad;
   config.normal_spawn_residual_floor = 0.0;
@@ -934,7 +944,9 @@ FrontEndConfig previous_default() {
 // The row's configuration: its base with the row's changes.
 FrontEndConfig front_end_config(Matcher matcher) {
   const MatcherSettings& s = settings(matcher);
-  FrontEndConfig config = s.base == Base::kBeforeSession34 ? previous_default() : FrontEndConfig{};
+  FrontEndConfig config = s.base == Base::kBeforeSession34 ? previous_default()
+                          : s.base == Base::kSession34    ? session34_default()
+                                                          : FrontEndConfig{};
   if (s.inverse_warp_masked) config.inverse_warp_masked = true;
   if (s.inverse_warp_ncc_min > 0.0f) config.inverse_warp_ncc_min = s.inverse_warp_ncc_min;
   if (s.match_sigma_limit_rad > 0.0) config.max_match_sigma_rad = s.match_sigma_limit_rad;
@@ -1212,12 +1224,14 @@ TEST_CASE("front end innovations are honest on the plane and the bunny", "[.][in
 }
 
 // The same band at the missions' 640x480 (four times the primitives; hidden: `integration_tests "[vga]"`,
-// 3 s in Release, too slow for the Debug and ASan suites). The plane has met it since session 12 (the
-// match floor as an angle, the normal fit over the 5 x 5 cells: all 2.957 in [2.943, 3.057], tracked 3.001
-// in [2.934, 3.067]; since session 21's spawn normals along the rays 2.961 in [2.943, 3.058] and 2.967 in
-// [2.933, 3.068]), so that check guards it; the bunny's is KNOWN TO FAIL (core/frontend/EXPERIMENTS.md,
-// "At the missions' resolution", "The normal fit's neighbourhood (session 12)", "Session 21").
-TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga]") {
+// 3 s in Release, too slow for the Debug and ASan suites). The plane met it from session 12 to session 43
+// (the match floor as an angle, the normal fit over the 5 x 5 cells: all 2.957 in [2.943, 3.057], tracked
+// 3.001 in [2.934, 3.067]; session 34's default 2.978 / 2.980). Against the point its patch shows that default
+// read 3.685 tracked: the band against the seed ray's point was a balance of the seed pin's lateral deficit
+// against an over-confidence (EXPERIMENTS.md, "Session 28"). Session 44's default, with the spawn's
+// left-right check, moves it to the cautious side just below the band (2.899 / 2.916; against the patch's
+// point 3.506, toward 3): KNOWN TO FAIL since then, like the bunny's (EXPERIMENTS.md, "Session 44").
+TEST_CASE("at 640x480, front end NEES on the plane lies in the 95% chi-square band", "[.][vga][!shouldfail]") {
   check_plane_nees_in_band(plane_run(Resolution::kVga));
 }
 
@@ -1285,7 +1299,7 @@ TEST_CASE("on a plane tilted 45 and 60 degrees, front end NEES lies in the 95% c
 // or near their bands with that tail, turns conservative without it. So the bulk of the matches is modelled
 // conservatively and a tail of wrong ones makes up the difference: item 6 needs both a smaller model for
 // the bulk and a test that finds the tail, not a larger R for every match. Measured on the default before
-// session 34 and kept there (Matcher::kPreviousDefault): with today's default the tail oracle takes the
+// session 34 and kept there (Matcher::kPreviousDefault): with the session 34 default the tail oracle takes the
 // bunny's tracked rows 4.53 -> 3.30 (320x240), most of a smaller excess (EXPERIMENTS.md, "Session 34").
 TEST_CASE("refusing the matches the truth puts in the tail takes most of the bunny's over-confidence",
           "[.][tail-oracle]") {
@@ -1342,7 +1356,7 @@ TEST_CASE("inverse_warp_masked matches more and keeps the tracked primitives acc
 // the surface, measured (EXPERIMENTS.md, "Session 24"): bunny 0.0849 -> 0.0397 (320x240) and 0.0385 ->
 // 0.0246 (640x480); planes facing, 45 and 60 degrees 0.0293 -> 0.0271, 0.0303 -> 0.0248, 0.0183 -> 0.0178
 // (320x240) and 0.0389 -> 0.0303, 0.0425 -> 0.0314, 0.0230 -> 0.0193 (640x480). A diagnostic, 20 s, measured
-// on the default before session 34 and kept there: today's default already has the bunny's error near the
+// on the default before session 34 and kept there: the session 34 default already has the bunny's error near the
 // oracle's (0.0417 and 0.0301; EXPERIMENTS.md, "Session 34").
 TEST_CASE("true normals make the bunny's and the tilted planes' tracked primitives more accurate", "[.][normal-oracle]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
@@ -1491,7 +1505,7 @@ bool in_band(const Figures& f) { return f.mean_nees >= f.band_low && f.mean_nees
 // seed ray's point / the patch's point: default 0.392 / 0.474, limit 6e-4 0.351 / 0.394, limit 4.3e-4 0.297 /
 // 0.350, converged fits 0.346 / 0.410, converged fits with the floor at 1.4e-4 0.318 / 0.457, tilted floor
 // 0.271 / 0.547; the floor at 1.4e-4 with the limit at 5e-4 0.303 / 0.426, with it at 4.3e-4 0.289 / 0.386
-// (session 33); today's default 0.273 / 0.416 (session 34), with the tilted floor 0.181 / 0.554 (session 35),
+// (session 33); the session 34 default 0.273 / 0.416 (session 34), with the tilted floor 0.181 / 0.554 (session 35),
 // with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4 0.168 / 0.401 (session 36), with the
 // view-correlated error (2, 30 degrees) 0.320 / 0.266 (session 38), with the deformation error (60, power 3) and
 // the floor at 1.0e-4 0.019 / 0.593 (session 39: every tracked row in band against the seed ray's point, the
@@ -1525,16 +1539,16 @@ TEST_CASE("every measured configuration is closer to consistency than the defaul
       {"tilted floor", Matcher::kFeatureTruthTiltFloor, -1},
       {"limit 5e-4, floor 1.4e-4", Matcher::kFeatureTruthLimitFloor, 1},
       {"limit 4.3e-4, floor 1.4e-4", Matcher::kFeatureTruthSigmaLimitFloor, 1},
-      {"today's default (limit 7e-4, floor 1.5e-4, spawn floor 1)", Matcher::kFeatureTruthDefault, 1},
-      {"today's default with the tilted floor", Matcher::kFeatureTruthDefaultTiltFloor, -1},
-      {"today's default with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4",
+      {"the session 34 default (limit 7e-4, floor 1.5e-4, spawn floor 1)", Matcher::kFeatureTruthDefault, 1},
+      {"the session 34 default with the tilted floor", Matcher::kFeatureTruthDefaultTiltFloor, -1},
+      {"the session 34 default with the inverse warp (NCC 0.95) and the tilted floor at 1.25e-4",
        Matcher::kFeatureTruthDefaultInverseTiltFloor, 1},
-      {"today's default with the view-correlated error (2, 30 degrees)", Matcher::kFeatureTruthDefaultViewCorrelated,
+      {"the session 34 default with the view-correlated error (2, 30 degrees)", Matcher::kFeatureTruthDefaultViewCorrelated,
        1},
-      {"today's default with the deformation error (60, power 3) and the floor at 1.0e-4",
+      {"the session 34 default with the deformation error (60, power 3) and the floor at 1.0e-4",
        Matcher::kFeatureTruthDefaultDeformation, -1},
-      {"today's default with the left-right check (1 px)", Matcher::kFeatureTruthDefaultBackMatch, 1},
-      {"today's default with the left-right check (1 px) and the view-correlated error (2, 30 degrees)",
+      {"the session 34 default with the left-right check (1 px)", Matcher::kFeatureTruthDefaultBackMatch, 1},
+      {"the session 34 default with the left-right check (1 px) and the view-correlated error (2, 30 degrees)",
        Matcher::kFeatureTruthDefaultBackMatchViewCorrelated, 1}};
   const auto row = [](const char* name, Matcher matcher) {
     for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
@@ -1618,14 +1632,14 @@ TEST_CASE("with the floor at 1.4e-4, a match limit of 5e-4 moves every row towar
 // 2.965 -> 2.978 / 2.980 (in band), bunny 36.195 / 5.862 -> 13.761 / 5.009; tracked RMS surface error
 // bunny 0.0849 -> 0.0417 and 0.0384 -> 0.0301, plane 0.0293 -> 0.0291 and 0.0390 -> 0.0393 (the one
 // that rises, by 0.8 %: hence the 2 % slack); match rates plane 0.961 -> 0.939, bunny 0.714 -> 0.618.
-TEST_CASE("today's default moves every row toward 3 against the default before session 34 and keeps its checks",
+TEST_CASE("the session 34 default moves every row toward 3 against the default before session 34 and keeps its checks",
           "[.][feature-truth]") {
   check_toward_consistency_with_the_checks(Matcher::kFeatureTruthDefault, 0.02);
 }
 
-// Session 36: today's default with masked templates matched by the inverse warp (FrontEndConfig::
+// Session 36: the session 34 default with masked templates matched by the inverse warp (FrontEndConfig::
 // inverse_warp_masked, its NCC at kInverseWarpNccMin) and the match floor at kInverseTiltFloorRad grown as
-// 1 / cos(tilt) (match_floor_tilt_power 1), against today's default (EXPERIMENTS.md, "Session 36"). Measured,
+// 1 / cos(tilt) (match_floor_tilt_power 1), against the session 34 default (EXPERIMENTS.md, "Session 36"). Measured,
 // today -> candidate (all / tracked): plane 320x240 2.624 / 2.555 -> 2.694 / 2.609, bunny 4.482 / 4.526 ->
 // 4.370 / 3.916, plane 640x480 2.978 / 2.980 -> 3.000 / 2.960 (in band), bunny 13.761 / 5.009 -> 13.174 /
 // 3.862; tracked RMS surface error plane 0.0291 -> 0.0304 (the one that rises, by 4.5 %: hence the 6 % slack)
@@ -1635,7 +1649,7 @@ TEST_CASE("today's default moves every row toward 3 against the default before s
 // its band, at 1.3e-4 the 320x240 plane moves away from 3. Not the default: over 44 paired missions it loses
 // coverage at 270 images (-2.0 points, standard error 0.9) and the share of precise primitives within three
 // sigmas of the surface falls at 600 (-0.9, 0.3), for verified coverage +1.3 (0.3) at 600.
-TEST_CASE("the inverse warp with a tilted floor at 1.25e-4 moves every row toward 3 against today's default and "
+TEST_CASE("the inverse warp with a tilted floor at 1.25e-4 moves every row toward 3 against the session 34 default and "
           "keeps its checks",
           "[.][feature-truth]") {
   check_toward_consistency_with_the_checks(Matcher::kFeatureTruthDefaultInverseTiltFloor, 0.06,
@@ -1647,7 +1661,7 @@ TEST_CASE("the inverse warp with a tilted floor at 1.25e-4 moves every row towar
 }
 
 // The view-correlated match error (FrontEndConfig::view_correlated_error_scale 2, view_correlation_deg 30) on
-// today's default (EXPERIMENTS.md, "Session 38"): a primitive's matches from nearby views share an error that
+// the session 34 default (EXPERIMENTS.md, "Session 38"): a primitive's matches from nearby views share an error that
 // decorrelates with the view change. It widens every covariance alike, so the bunny's tracked rows come down
 // toward 3 while the planes', already near or below 3, fall below their bands: the model does not tell the
 // two scenes apart. Its gain is in the missions (EXPERIMENTS.md). This case records the direction.
@@ -1675,7 +1689,7 @@ TEST_CASE("the view-correlated error brings the bunny's tracked rows toward 3 an
 // "Session 39"): the view-correlated error grown with how unevenly the warp stretches the reference patch, so
 // the oblique bunny gets much of it and the plane seen nearly head-on little, and the lower floor lifts the
 // planes. Every tracked row of both scenes at both resolutions lies in its band, which no configuration did
-// before (today's default 2.555 / 4.526 / 2.980 / 5.021, plane / bunny at 320x240, then at 640x480).
+// before (the session 34 default 2.555 / 4.526 / 2.980 / 5.021, plane / bunny at 320x240, then at 640x480).
 TEST_CASE("with the deformation error and a lower floor every tracked row of both scenes lies in its band",
           "[.][deformation]") {
   for (Resolution resolution : {Resolution::kHalfVga, Resolution::kVga}) {
@@ -1729,7 +1743,7 @@ TEST_CASE("the left-right check makes every scene's primitives more accurate and
 // whose patch the other image does not show the same way. Against the point each patch shows it is the closest
 // to consistency of any configuration measured (0.266 -> 0.235), the bunny keeps more of its matches (0.525 ->
 // 0.537, 0.603 -> 0.619) and the planes' tracked primitives are more accurate. Over 22 paired missions against
-// today's default it costs 3.1 / 1.8 points of coverage at 270 / 600 images (the view-correlated error alone 4.6
+// the session 34 default it costs 3.1 / 1.8 points of coverage at 270 / 600 images (the view-correlated error alone 4.6
 // / 1.4) for 10.4 / 13.0 more of the precise primitives within three sigmas of the surface.
 TEST_CASE("with the view-correlated error the left-right check comes closer to consistency against the patch's point "
           "and keeps more of the bunny's matches",

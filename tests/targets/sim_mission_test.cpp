@@ -192,8 +192,10 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(beyond >= 0);
   CHECK(seeded + beyond <= tried);
   CHECK(beyond < tried / 20);
-  // The left-right check is off by default: no seed refused by it.
-  CHECK(json_count(summary, "seeds_rejected_back_match") == 0);
+  // The left-right check is on by default (1 px since session 44): it refuses some matched seeds, far from all.
+  const long long refused = json_count(summary, "seeds_rejected_back_match");
+  CHECK(refused > 0);
+  CHECK(refused < seeded / 5);
   // Every innovation the gate tested is a matched observation's (not all matches reach the gate: too uncertain).
   const std::size_t innovations = summary.find("\"innovations\": {");
   REQUIRE(innovations != std::string::npos);
@@ -202,12 +204,12 @@ TEST_CASE("vantage-sim: an image mission reports its tracked observations, every
   CHECK(tested <= matched);
 }
 
-TEST_CASE("vantage-sim: --spawn-back-match-px refuses some matched seeds, far from all") {
-  const std::string summary = three_image_summary("back_match", {"--spawn-back-match-px", "1"});
-  const long long seeded = json_count(summary, "seeds_matched");
-  const long long refused = json_count(summary, "seeds_rejected_back_match");
-  CHECK(refused > 0);
-  CHECK(refused < seeded / 5);
+TEST_CASE("vantage-sim: --spawn-back-match-px 0 turns the left-right check off and spawns more") {
+  const std::string with_check = three_image_summary("back_match_on", {});
+  const std::string without = three_image_summary("back_match_off", {"--spawn-back-match-px", "0"});
+  CHECK(json_count(without, "seeds_rejected_back_match") == 0);
+  CHECK(json_count(with_check, "seeds_rejected_back_match") > 0);
+  CHECK(json_count(without, "seeds_matched") > json_count(with_check, "seeds_matched"));
 }
 
 TEST_CASE("vantage-sim: --max-match-sigma-rad below the match floor refuses every found match as too uncertain") {
