@@ -1398,6 +1398,14 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
       const PrimitiveIndex i = cell_primitive_[cell];
       fit_normal(i, cx, cy, stride * cell_depth_[cell] / focal, std::numeric_limits<double>::infinity(),
                  reference_view.position_world, along_rays, NormalSource::kSpawnFit, pool);
+      // No plane among its neighbours: erased before tracking (later cells' fits no longer see it).
+      if (config_.spawn_requires_plane_fit && normal_source(i) == NormalSource::kFacingPrior && ok(pool.erase(i))) {
+        cell_primitive_[cell] = kInvalidPrimitive;
+        cell_state_[cell] &= static_cast<std::uint8_t>(~kCellSpawned);
+        --report.spawned;
+        ++stats_.seeds_rejected_no_plane_fit;
+        continue;
+      }
       if (along_rays) continue;
       Primitive& p = pool[i];
       const Eigen::Vector3d to_camera = (reference_view.position_world - p.X_world).normalized();

@@ -113,6 +113,14 @@ struct FrontEndConfig {
   // NEES moves just below its band, to the cautious side (2.978 -> 2.899): the floor was calibrated with the
   // refused seeds (EXPERIMENTS.md, "Session 42" and "Session 44").
   double spawn_back_match_max_px = 1.0;
+  // A new primitive whose neighbours fit no plane (the spawn's normal fit fails, so it would keep the facing
+  // prior) is erased before anything uses it: its seed lies on a depth edge, on relief the fit's chi^2 test
+  // refuses, or alone. Counted in FrontEndStats::seeds_rejected_no_plane_fit. Off by default: on the
+  // 640x480 bunny those seeds' mean NEES is about 87, and without them the all-primitive row falls 11.6 ->
+  // 8.5. Over 22 paired missions the confirmed primitives' RMS falls by a third (0.095 -> 0.063 at 600
+  // images) and those more than a unit off by two thirds, with coverage level at 600 images but 4.2 points
+  // lower at 270 (EXPERIMENTS.md, "Session 45").
+  bool spawn_requires_plane_fit = false;
   // The Mahalanobis gate of the EKF, and the fixed image measurement covariance R (px^2). R sizes the
   // search windows; it is also each match's R when adaptive_R is off.
   EkfConfig ekf;
@@ -392,6 +400,7 @@ struct FrontEndStats {
   std::uint64_t seeds_rejected_triangulation = 0;
   std::uint64_t seeds_beyond_depth_range = 0;  // best epipolar peak in the guard band (kBeyondDepthRange)
   std::uint64_t seeds_rejected_back_match = 0;  // the left-right check (spawn_back_match_max_px) failed
+  std::uint64_t seeds_rejected_no_plane_fit = 0;  // spawn_requires_plane_fit: new primitives erased
   std::uint64_t unconfirmed_erased = 0;       // new primitives whose first re-observation failed
   std::uint64_t gated_erased = 0;             // track loss (FrontEndConfig::max_rejected_in_a_row)
   std::uint64_t unsearchable_erased = 0;      // FrontEndConfig::erase_unsearchable

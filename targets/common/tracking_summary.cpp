@@ -22,15 +22,22 @@ std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std
 }
 
 std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uint64_t beyond_depth_range,
-                            std::uint64_t rejected_back_match) {
+                            std::uint64_t rejected_back_match, std::uint64_t rejected_no_plane_fit) {
   if (tried == 0) return "seeding: no seed searched";
   const double share = 100.0 / static_cast<double>(tried);
   char line[200];
   const int n =
       std::snprintf(line, sizeof line, "seeding: %llu seeds searched, %.1f%% matched, %.1f%% past the depth range",
                     static_cast<unsigned long long>(tried), share * matched, share * beyond_depth_range);
-  if (rejected_back_match > 0 && n > 0 && static_cast<std::size_t>(n) < sizeof line) {
-    std::snprintf(line + n, sizeof line - n, ", %.1f%% refused by the left-right check", share * rejected_back_match);
+  std::size_t used = n > 0 ? static_cast<std::size_t>(n) : sizeof line;
+  if (rejected_back_match > 0 && used < sizeof line) {
+    const int more = std::snprintf(line + used, sizeof line - used, ", %.1f%% refused by the left-right check",
+                                   share * rejected_back_match);
+    used = more > 0 ? used + static_cast<std::size_t>(more) : sizeof line;
+  }
+  if (rejected_no_plane_fit > 0 && used < sizeof line) {
+    std::snprintf(line + used, sizeof line - used, ", %.1f%% erased without a plane fit",
+                  share * rejected_no_plane_fit);
   }
   return line;
 }

@@ -14,11 +14,12 @@ namespace vantage::targets {
 std::string tracking_summary(std::uint64_t predicted, std::uint64_t matched, std::uint64_t inverse_warped,
                              const TrackFailureCounts& failures);
 
-// "seeding: N seeds searched, x% matched, y% past the depth range" (no newline), and ", z% refused by the
-// left-right check" when it refused any; a large past-the-range share says the configured depth range misses
-// much of the scene. "seeding: no seed searched" for 0.
+// "seeding: N seeds searched, x% matched, y% past the depth range" (no newline), ", z% refused by the
+// left-right check" when it refused any and ", w% erased without a plane fit" when it erased any (each a share
+// of the seeds searched); a large past-the-range share says the configured depth range misses much of the
+// scene. "seeding: no seed searched" for 0.
 std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uint64_t beyond_depth_range,
-                            std::uint64_t rejected_back_match);
+                            std::uint64_t rejected_back_match, std::uint64_t rejected_no_plane_fit);
 
 // "innovations: N tested by the gate, median NIS x times chi-square(2)'s, y% beyond its 95% point (honest
 // covariances: 1 and 5%)" (no newline): the EKF's consistency without ground truth (NisHistogram). A median

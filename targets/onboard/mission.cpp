@@ -151,6 +151,7 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
   fc.spawn_normal_fit_along_rays = m.spawn_normal_fit_along_rays;
   fc.epipolar_guard_fraction = m.epipolar_guard_fraction;
   fc.spawn_back_match_max_px = m.spawn_back_match_max_px;
+  fc.spawn_requires_plane_fit = m.spawn_requires_plane_fit;
   fc.max_match_sigma_rad = m.max_match_sigma_rad;
   fc.subpixel_iterations = m.subpixel_iterations;
   fc.require_converged_fit = m.require_converged_fit;
@@ -269,7 +270,8 @@ int run_mission(const OnboardConfig& config, hal::Camera& camera, const CameraRe
                                                        tracked.tracks_inverse_warped, tracked.track_failures).c_str());
   std::printf("%s\n", targets::seeding_summary(tracked.seeds_tried, tracked.seeds_matched,
                                                       tracked.seeds_beyond_depth_range,
-                                                      tracked.seeds_rejected_back_match).c_str());
+                                                      tracked.seeds_rejected_back_match,
+                                                      tracked.seeds_rejected_no_plane_fit).c_str());
   std::printf("%s\n", targets::innovation_summary(tracked.ekf.nis).c_str());
   const SensingAction last = g_executive.next();
   if (last.kind == SensingActionKind::kDone) {

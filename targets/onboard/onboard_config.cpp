@@ -191,7 +191,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
                        "keep_out_radius_m", "max_images", "rho_sigma", "eta_utility", "split_epsilon_cells",
                        "depth_min_m", "depth_max_m", "inverse_warp_masked", "inverse_warp_ncc_min",
                        "spawn_normal_fit_along_rays", "epipolar_guard_fraction", "spawn_back_match_max_px",
-                       "max_match_sigma_rad",
+                       "spawn_requires_plane_fit", "max_match_sigma_rad",
                        "subpixel_iterations", "require_converged_fit", "match_sigma_floor_rad",
                        "match_floor_tilt_power", "view_correlated_error_scale", "view_correlation_deg",
                        "deformation_error_scale", "deformation_error_power"});
@@ -218,6 +218,7 @@ std::string parse_onboard_config(const std::string& yaml_text, const std::string
     mis.number("epipolar_guard_fraction", &s.epipolar_guard_fraction, 0, kMaxEpipolarGuardFraction);
     // vantage-sim --spawn-back-match-px's range.
     mis.number("spawn_back_match_max_px", &s.spawn_back_match_max_px, 0, 100);
+    mis.boolean("spawn_requires_plane_fit", &s.spawn_requires_plane_fit);
     mis.number("max_match_sigma_rad", &s.max_match_sigma_rad, 0, 9e-3);
     mis.integer("subpixel_iterations", &s.subpixel_iterations, 0, 20);
     mis.boolean("require_converged_fit", &s.require_converged_fit);

@@ -59,6 +59,9 @@ struct MissionSettings {
   // FrontEndConfig::spawn_back_match_max_px: a new primitive's match must match back to its seed within
   // this many pixels (the left-right check; 0: off).
   double spawn_back_match_max_px = FrontEndConfig{}.spawn_back_match_max_px;
+  // FrontEndConfig::spawn_requires_plane_fit: a new primitive whose neighbours fit no plane is erased before
+  // it is tracked (more accurate primitives, less coverage early in a mission).
+  bool spawn_requires_plane_fit = FrontEndConfig{}.spawn_requires_plane_fit;
   // FrontEndConfig::max_match_sigma_rad: a tracked match whose modelled sd exceeds this angle times the
   // focal length is not used (0: off; more trustworthy sigmas, less coverage early in a mission).
   double max_match_sigma_rad = FrontEndConfig{}.max_match_sigma_rad;

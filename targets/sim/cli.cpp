@@ -100,6 +100,9 @@ int run_cli(int argc, const char* const* argv) {
                  "seed along the reverse epipolar line (the left-right check; 0: off)")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  app.add_flag("--spawn-requires-plane-fit", options.spawn_requires_plane_fit,
+               "image front end: erase a new primitive whose neighbours fit no plane (a depth edge, or alone) "
+               "before it is tracked (default off: more accurate primitives, less coverage at 270 images)");
   // rays / scatter, mapped onto the bool after parsing.
   std::string spawn_normal_fit = options.spawn_normal_fit_along_rays ? "rays" : "scatter";
   app.add_option("--spawn-normal-fit", spawn_normal_fit,
@@ -294,7 +297,8 @@ int run_cli(int argc, const char* const* argv) {
                                                    summary.tracks_inverse_warped, summary.track_failures) << "\n";
         std::cout << "  " << targets::seeding_summary(summary.seeds_tried, summary.seeds_matched,
                                                   summary.seeds_beyond_depth_range,
-                                                  summary.seeds_rejected_back_match) << "\n";
+                                                  summary.seeds_rejected_back_match,
+                                                  summary.seeds_rejected_no_plane_fit) << "\n";
       }
       std::cout << "  " << targets::innovation_summary(summary.innovations) << "\n";
       if (!out_dir.empty()) {

@@ -232,6 +232,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     fc.spawn_normal_fit_along_rays = options.spawn_normal_fit_along_rays;
     fc.epipolar_guard_fraction = options.epipolar_guard_fraction;
     fc.spawn_back_match_max_px = options.spawn_back_match_max_px;
+    fc.spawn_requires_plane_fit = options.spawn_requires_plane_fit;
     fc.inverse_warp_masked = options.inverse_warp_masked;
     fc.inverse_warp_ncc_min = static_cast<float>(options.inverse_warp_ncc_min);
     fc.match_sigma_floor_rad = options.match_sigma_floor_rad;
@@ -438,6 +439,7 @@ MissionSummary run_mission(const SimSetup& setup, const MissionOptions& options,
     summary.seeds_matched = fs.seeds_matched;
     summary.seeds_beyond_depth_range = fs.seeds_beyond_depth_range;
     summary.seeds_rejected_back_match = fs.seeds_rejected_back_match;
+    summary.seeds_rejected_no_plane_fit = fs.seeds_rejected_no_plane_fit;
     summary.innovations = fs.ekf.nis;
   } else if (oracle != nullptr) {
     summary.innovations = oracle->ekf_stats().nis;

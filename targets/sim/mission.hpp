@@ -47,6 +47,8 @@ struct MissionOptions {
   double epipolar_guard_fraction = FrontEndConfig{}.epipolar_guard_fraction;
   // Image front end: FrontEndConfig::spawn_back_match_max_px (the spawn match's left-right check).
   double spawn_back_match_max_px = FrontEndConfig{}.spawn_back_match_max_px;
+  // Image front end: FrontEndConfig::spawn_requires_plane_fit (new primitives without a plane fit erased).
+  bool spawn_requires_plane_fit = FrontEndConfig{}.spawn_requires_plane_fit;
   // Image front end: FrontEndConfig::inverse_warp_masked (masked templates matched by warping the image).
   bool inverse_warp_masked = FrontEndConfig{}.inverse_warp_masked;
   double inverse_warp_ncc_min = FrontEndConfig{}.inverse_warp_ncc_min;  // FrontEndConfig::inverse_warp_ncc_min

@@ -102,6 +102,7 @@ struct MissionSummary {
   std::uint64_t seeds_matched = 0;
   std::uint64_t seeds_beyond_depth_range = 0;
   std::uint64_t seeds_rejected_back_match = 0;
+  std::uint64_t seeds_rejected_no_plane_fit = 0;  // FrontEndConfig::spawn_requires_plane_fit
   // Every innovation the EKF's gate tested (image front end or oracle): the consistency check without
   // ground truth (core/estimation/nis_histogram.hpp).
   NisHistogram innovations;

@@ -289,6 +289,7 @@ std::string summary_json(const MissionSummary& s) {
       << "  \"seeds_matched\": " << s.seeds_matched << ",\n"
       << "  \"seeds_beyond_depth_range\": " << s.seeds_beyond_depth_range << ",\n"
       << "  \"seeds_rejected_back_match\": " << s.seeds_rejected_back_match << ",\n"
+      << "  \"seeds_rejected_no_plane_fit\": " << s.seeds_rejected_no_plane_fit << ",\n"
       << "  \"innovations\": " << innovations_json(s.innovations) << "\n"
       << "}\n";
   return out.str();

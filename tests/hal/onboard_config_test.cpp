@@ -51,6 +51,7 @@ mission:
   spawn_normal_fit_along_rays: false
   epipolar_guard_fraction: 1.5
   spawn_back_match_max_px: 0.75
+  spawn_requires_plane_fit: true
   max_match_sigma_rad: 4.3e-4
   subpixel_iterations: 6
   require_converged_fit: true
@@ -83,6 +84,7 @@ mission:
   CHECK_FALSE(c.mission.spawn_normal_fit_along_rays);
   CHECK(c.mission.epipolar_guard_fraction == 1.5);
   CHECK(c.mission.spawn_back_match_max_px == 0.75);
+  CHECK(c.mission.spawn_requires_plane_fit);
   CHECK(c.mission.max_match_sigma_rad == 4.3e-4);
   CHECK(c.mission.subpixel_iterations == 6);
   CHECK(c.mission.require_converged_fit);
@@ -99,6 +101,7 @@ mission:
   CHECK(defaults.mission.spawn_normal_fit_along_rays);
   CHECK(defaults.mission.epipolar_guard_fraction == FrontEndConfig{}.epipolar_guard_fraction);
   CHECK(defaults.mission.spawn_back_match_max_px == FrontEndConfig{}.spawn_back_match_max_px);
+  CHECK(defaults.mission.spawn_requires_plane_fit == FrontEndConfig{}.spawn_requires_plane_fit);
   CHECK(defaults.mission.max_match_sigma_rad == FrontEndConfig{}.max_match_sigma_rad);
   CHECK(defaults.mission.subpixel_iterations == FrontEndConfig{}.subpixel_iterations);
   CHECK(defaults.mission.require_converged_fit == FrontEndConfig{}.require_converged_fit);

@@ -212,6 +212,16 @@ TEST_CASE("vantage-sim: --spawn-back-match-px 0 turns the left-right check off a
   CHECK(json_count(without, "seeds_matched") > json_count(with_check, "seeds_matched"));
 }
 
+TEST_CASE("vantage-sim: --spawn-requires-plane-fit erases the new primitives whose neighbours fit no plane") {
+  const std::string off = three_image_summary("plane_fit_off", {});
+  const std::string on = three_image_summary("plane_fit_on", {"--spawn-requires-plane-fit"});
+  CHECK(json_count(off, "seeds_rejected_no_plane_fit") == 0);
+  const long long erased = json_count(on, "seeds_rejected_no_plane_fit");
+  CHECK(erased > 0);
+  // Erased after matching: a small share of the matched seeds, as on the 640x480 bunny of the consistency test.
+  CHECK(erased < json_count(on, "seeds_matched") / 5);
+}
+
 TEST_CASE("vantage-sim: --max-match-sigma-rad below the match floor refuses every found match as too uncertain") {
   // 1e-4 rad is below the default floor (1.5e-4 rad), which every match's standard deviation includes.
   const std::string summary = three_image_summary("too_uncertain", {"--max-match-sigma-rad", "1e-4"});
