@@ -1400,8 +1400,7 @@ void ImageFrontEnd::spawn(const GrayImageView& reference, const Viewpoint& refer
                  reference_view.position_world, along_rays, NormalSource::kSpawnFit, pool);
       // No plane among its neighbours: erased before tracking (later cells' fits no longer see it).
       if (config_.spawn_requires_plane_fit && normal_source(i) == NormalSource::kFacingPrior && ok(pool.erase(i))) {
-        cell_primitive_[cell] = kInvalidPrimitive;
-        cell_state_[cell] &= static_cast<std::uint8_t>(~kCellSpawned);
+        forget_cell(i, cell);
         --report.spawned;
         ++stats_.seeds_rejected_no_plane_fit;
         continue;

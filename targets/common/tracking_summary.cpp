@@ -29,16 +29,15 @@ std::string seeding_summary(std::uint64_t tried, std::uint64_t matched, std::uin
   const int n =
       std::snprintf(line, sizeof line, "seeding: %llu seeds searched, %.1f%% matched, %.1f%% past the depth range",
                     static_cast<unsigned long long>(tried), share * matched, share * beyond_depth_range);
+  // Each refusal reason that refused any seed, as a share of the seeds searched.
   std::size_t used = n > 0 ? static_cast<std::size_t>(n) : sizeof line;
-  if (rejected_back_match > 0 && used < sizeof line) {
-    const int more = std::snprintf(line + used, sizeof line - used, ", %.1f%% refused by the left-right check",
-                                   share * rejected_back_match);
+  auto append_share = [&](std::uint64_t count, const char* what) {
+    if (count == 0 || used >= sizeof line) return;
+    const int more = std::snprintf(line + used, sizeof line - used, ", %.1f%% %s", share * count, what);
     used = more > 0 ? used + static_cast<std::size_t>(more) : sizeof line;
-  }
-  if (rejected_no_plane_fit > 0 && used < sizeof line) {
-    std::snprintf(line + used, sizeof line - used, ", %.1f%% erased without a plane fit",
-                  share * rejected_no_plane_fit);
-  }
+  };
+  append_share(rejected_back_match, "refused by the left-right check");
+  append_share(rejected_no_plane_fit, "erased without a plane fit");
   return line;
 }
 

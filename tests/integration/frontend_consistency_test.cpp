@@ -866,6 +866,7 @@ struct MatcherSettings {
   double view_correlated_error;  // FrontEndConfig::view_correlated_error_scale (at view_correlation_deg 30)
   double deformation_error;      // FrontEndConfig::deformation_error_scale (at deformation_error_power 3)
   double back_match_px;          // FrontEndConfig::spawn_back_match_max_px
+  bool plane_fit_spawn;          // FrontEndConfig::spawn_requires_plane_fit
   const char* label;             // appended to the scene's name
 };
 constexpr Base kToday = Base::kToday;
@@ -873,52 +874,53 @@ constexpr Base kS34 = Base::kSession34;
 constexpr Base kBefore = Base::kBeforeSession34;
 // Rows: matcher, base, against_patch, inverse_warp_masked, inverse_warp_ncc_min, match_sigma_limit_rad,
 // converged_fits, match_floor_rad, floor_tilt_power, view_correlated_error, deformation_error, back_match_px,
-// label.
+// plane_fit_spawn, label.
 constexpr MatcherSettings kMatcherSettings[kMatchers] = {
-    {Matcher::kDefault, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, ""},
+    {Matcher::kDefault, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, false, ""},
     {Matcher::kInverseWarp, kBefore, false, true, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (the default before session 34)"},
-    {Matcher::kTailOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, " (tail oracle)"},
-    {Matcher::kNormalOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, " (normal oracle)"},
+     false, " (the default before session 34)"},
+    {Matcher::kTailOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, false, " (tail oracle)"},
+    {Matcher::kNormalOracle, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
+     false, " (normal oracle)"},
     {Matcher::kMatchSigmaLimit, kBefore, false, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (match sigma limit)"},
+     false, " (match sigma limit)"},
     {Matcher::kFeatureTruth, kBefore, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (the default before session 34)"},
+     false, " (the default before session 34)"},
     {Matcher::kFeatureTruthLimited, kBefore, true, false, 0.0f, kCandidateMatchSigmaLimitRad, false, 0.0, 0.0, 0.0,
-     0.0, 0.0, " (match sigma limit 6e-4)"},
-    {Matcher::kConvergedFit, kBefore, false, false, 0.0f, 0.0, true, 0.0, 0.0, 0.0, 0.0, 0.0, " (converged fits)"},
+     0.0, 0.0, false, " (match sigma limit 6e-4)"},
+    {Matcher::kConvergedFit, kBefore, false, false, 0.0f, 0.0, true, 0.0, 0.0, 0.0, 0.0, 0.0,
+     false, " (converged fits)"},
     {Matcher::kTiltFloor, kBefore, false, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0, 0.0, 0.0, 0.0,
-     " (converged fits, tilted floor)"},
+     false, " (converged fits, tilted floor)"},
     {Matcher::kFeatureTruthTiltFloor, kBefore, true, false, 0.0f, 0.0, true, kTiltFloorRad, 1.0, 0.0, 0.0, 0.0,
-     " (converged fits, tilted floor)"},
+     false, " (converged fits, tilted floor)"},
     {Matcher::kFeatureTruthSigmaLimit, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (match sigma limit)"},
+     false, " (match sigma limit)"},
     {Matcher::kFeatureTruthConvergedFit, kBefore, true, false, 0.0f, 0.0, true, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (converged fits)"},
+     false, " (converged fits)"},
     {Matcher::kFeatureTruthConvergedFloor, kBefore, true, false, 0.0f, 0.0, true, kLowerFloorRad, 0.0, 0.0, 0.0, 0.0,
-     " (converged fits, floor 1.4e-4)"},
+     false, " (converged fits, floor 1.4e-4)"},
     {Matcher::kFeatureTruthLimitFloor, kBefore, true, false, 0.0f, kLimitWithLowerFloorRad, false, kLowerFloorRad, 0.0,
-     0.0, 0.0, 0.0, " (match sigma limit 5e-4, floor 1.4e-4)"},
+     0.0, 0.0, 0.0, false, " (match sigma limit 5e-4, floor 1.4e-4)"},
     {Matcher::kFeatureTruthSigmaLimitFloor, kBefore, true, false, 0.0f, kMatchSigmaLimitRad, false, kLowerFloorRad, 0.0,
-     0.0, 0.0, 0.0, " (match sigma limit, floor 1.4e-4)"},
+     0.0, 0.0, 0.0, false, " (match sigma limit, floor 1.4e-4)"},
     {Matcher::kFeatureTruthDefault, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (the session 34 default)"},
+     false, " (the session 34 default)"},
     {Matcher::kPreviousDefault, kBefore, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
-     " (the default before session 34)"},
+     false, " (the default before session 34)"},
     {Matcher::kFeatureTruthDefaultTiltFloor, kS34, true, false, 0.0f, 0.0, false, kTiltFloorRad, 1.0, 0.0, 0.0, 0.0,
-     " (tilted floor)"},
+     false, " (tilted floor)"},
     {Matcher::kFeatureTruthDefaultInverseTiltFloor, kS34, true, true, kInverseWarpNccMin, 0.0, false,
-     kInverseTiltFloorRad, 1.0, 0.0, 0.0, 0.0, " (inverse warp with NCC 0.95, tilted floor 1.25e-4)"},
+     kInverseTiltFloorRad, 1.0, 0.0, 0.0, 0.0, false, " (inverse warp with NCC 0.95, tilted floor 1.25e-4)"},
     {Matcher::kFeatureTruthDefaultViewCorrelated, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0,
-     kViewCorrelatedErrorScale, 0.0, 0.0, " (view-correlated error 2, 30 deg)"},
+     kViewCorrelatedErrorScale, 0.0, 0.0, false, " (view-correlated error 2, 30 deg)"},
     {Matcher::kFeatureTruthDefaultDeformation, kS34, true, false, 0.0f, 0.0, false, kDeformationFloorRad, 0.0, 0.0,
-     kDeformationErrorScale, 0.0, " (deformation error 60, floor 1.0e-4)"},
+     kDeformationErrorScale, 0.0, false, " (deformation error 60, floor 1.0e-4)"},
     {Matcher::kFeatureTruthDefaultBackMatch, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, kBackMatchPx,
-     " (left-right check 1 px: today's default)"},
+     false, " (left-right check 1 px: today's default)"},
     {Matcher::kFeatureTruthDefaultBackMatchViewCorrelated, kS34, true, false, 0.0f, 0.0, false, 0.0, 0.0,
-     kViewCorrelatedErrorScale, 0.0, kBackMatchPx, " (left-right check 1 px, view-correlated error 2, 30 deg)"},
-    // Today's default with spawn_requires_plane_fit (set in front_end_config: no other row uses it).
-    {Matcher::kPlaneFitSpawn, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0,
+     kViewCorrelatedErrorScale, 0.0, kBackMatchPx, false, " (left-right check 1 px, view-correlated error 2, 30 deg)"},
+    {Matcher::kPlaneFitSpawn, kToday, false, false, 0.0f, 0.0, false, 0.0, 0.0, 0.0, 0.0, 0.0, true,
      " (a plane fit required at spawn)"},
 };
 constexpr bool rows_in_order() {
@@ -963,7 +965,7 @@ FrontEndConfig front_end_config(Matcher matcher) {
   if (s.view_correlated_error > 0.0) config.view_correlated_error_scale = s.view_correlated_error;
   if (s.deformation_error > 0.0) config.deformation_error_scale = s.deformation_error;
   if (s.back_match_px > 0.0) config.spawn_back_match_max_px = s.back_match_px;
-  if (matcher == Matcher::kPlaneFitSpawn) config.spawn_requires_plane_fit = true;
+  if (s.plane_fit_spawn) config.spawn_requires_plane_fit = true;
   return config;
 }
 
